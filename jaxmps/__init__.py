@@ -1,0 +1,30 @@
+"""jaxmps: a differentiable Moving Particle Semi-implicit (MPS) solver in JAX.
+
+The everyday API is re-exported here; subpackages (`neighbours`, `operators`,
+`fluid`, `geometry`, `io`, `scenes`) are public namespaces for the rest.
+"""
+
+from . import fluid as fluid
+from . import geometry as geometry
+from . import neighbours as neighbours
+from . import operators as operators
+from ._build import make_params as make_params
+from ._build import make_scene as make_scene
+from ._build import make_state as make_state
+from ._params import Params as Params
+from ._result import Result as Result
+from ._result import StepInfo as StepInfo
+from ._scene import Scene as Scene
+from ._simulate import Frame as Frame
+from ._simulate import Trajectory as Trajectory
+from ._simulate import frame as frame
+from ._simulate import simulate as simulate
+from ._state import State as State
+from ._step import step as step
+from ._types import Kind as Kind
+from .fluid import SemiImplicit as SemiImplicit
+from .operators import CorrectedGradient as CorrectedGradient
+from .operators import MPSWeight as MPSWeight
+from .operators import StandardGradient as StandardGradient
+
+__version__ = "0.1.0"

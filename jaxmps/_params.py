@@ -1,0 +1,40 @@
+"""Params: the differentiable, vmappable float parameters of a simulation."""
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+from jaxtyping import Array, Float
+
+
+class Params(eqx.Module):
+    """Physical coefficients. Float arrays only: changing a value never recompiles.
+
+    Attributes:
+        density: reference fluid density rho0 [kg/m^3].
+        viscosity: kinematic viscosity nu [m^2/s].
+        gravity: gravitational acceleration vector [m/s^2], shape (d,).
+        dt: time step [s].
+        beta: free-surface threshold; a particle with n* < beta * n0 is on the surface.
+    """
+
+    density: Float[Array, ""] = eqx.field(converter=jnp.asarray)
+    viscosity: Float[Array, ""] = eqx.field(converter=jnp.asarray)
+    gravity: Float[Array, " d"] = eqx.field(converter=jnp.asarray)
+    dt: Float[Array, ""] = eqx.field(converter=jnp.asarray)
+    beta: Float[Array, ""] = eqx.field(converter=jnp.asarray)
+
+    def __check_init__(self):
+        # Only concrete scalars can be checked; traced or batched values pass through.
+        for name in ("density", "dt", "beta"):
+            value = getattr(self, name)
+            if isinstance(value, jax.core.Tracer) or jnp.ndim(value) != 0:
+                continue
+            if not float(value) > 0:
+                raise ValueError(f"Params.{name} must be positive, got {float(value)}.")
+        if not isinstance(self.viscosity, jax.core.Tracer) and jnp.ndim(
+            self.viscosity
+        ) == 0:
+            if not float(self.viscosity) >= 0:
+                raise ValueError(
+                    f"Params.viscosity must be >= 0, got {float(self.viscosity)}."
+                )

@@ -1,0 +1,60 @@
+"""Result codes threaded through every step and raised once, at the end of a run."""
+
+import equinox as eqx
+import jax.numpy as jnp
+from jaxtyping import Array, ArrayLike, Bool, Float, Int
+
+
+class Result(eqx.Enumeration):
+    """Outcome of a step or a rollout. The first failure wins; later ones are ignored.
+
+    Each message says which setting to change.
+    """
+
+    successful = ""
+    neighbour_overflow = (
+        "A particle had more neighbours than `Scene.max_neighbours` slots. Raise it "
+        "(scene override `max_neighbours=...`, or `make_scene(neighbour_margin=...)`)."
+    )
+    cell_overflow = (
+        "A neighbour-search cell held more particles than `Scene.grid.cell_capacity`. "
+        "Raise it (scene override `cell_capacity=...`, or "
+        "`make_scene(cell_margin=...)`)."
+    )
+    pressure_not_converged = (
+        "The pressure Poisson solve did not reach its tolerance within "
+        "`SemiImplicit.max_iterations` iterations. Raise `max_iterations`, loosen "
+        "`SemiImplicit.rtol`, or reduce `dt`."
+    )
+    nonfinite_state = (
+        "A particle position, velocity or pressure became NaN or infinite. Reduce `dt` "
+        "(the run was likely unstable), or run in float64 (`--x64`)."
+    )
+    left_domain = (
+        "A particle left the domain box `Scene.grid` (it was kept in the neighbour "
+        "search, clamped to the boundary cells). Enlarge the domain (scene override "
+        "`domain_margin=...`) or find why it escaped (splash over a wall, instability)."
+    )
+    step_too_large = (
+        "The Courant number max|u| dt / l0 exceeded `Scene.courant_limit`: the time "
+        "step is beyond the stability limit. Reduce `dt` (scene override `dt=...`)."
+    )
+
+
+def update_result(
+    old: Result, pred: Bool[ArrayLike, ""], item: Result
+) -> Result:
+    """Return `item` if `pred` holds and nothing failed before, else `old`."""
+    return Result.where(jnp.logical_and(pred, old == Result.successful), item, old)
+
+
+class StepInfo(eqx.Module):
+    """Diagnostics of one step (not part of the State; `simulate` can save them)."""
+
+    pressure_iterations: Int[Array, ""]
+    pressure_residual: Float[Array, ""]
+    pressure_converged: Bool[Array, ""]
+    neighbour_overflow: Bool[Array, ""]
+    cell_overflow: Bool[Array, ""]
+    outside: Bool[Array, ""]
+    surface_count: Int[Array, ""]

@@ -1,0 +1,52 @@
+"""Scene: the static description of a simulation (shapes, discretisation, models)."""
+
+import equinox as eqx
+
+from .fluid import AbstractSolver, SemiImplicit
+from .neighbours import Grid
+from .operators import AbstractGradient, AbstractWeight, CorrectedGradient, MPSWeight
+
+
+class Scene(eqx.Module):
+    """Everything that fixes a shape, a loop bound or a branch. Changing it recompiles.
+
+    Build one with `jaxmps.make_scene` rather than by hand: it derives n0, lambda and
+    the capacities from the initial particles.
+
+    Attributes:
+        dim: spatial dimension (2 or 3); the last axis is vertical.
+        capacity: number of particle slots n (active and pooled).
+        spacing: initial particle spacing l0 [m].
+        r_e: influence radius [m].
+        n0: reference particle number density of the lattice.
+        lam: Laplacian coefficient lambda [m^2].
+        grid: neighbour-search cell grid; its box is the domain.
+        max_neighbours: neighbour slots per particle.
+        courant_limit: largest max|u| dt / l0 accepted before `Result.step_too_large`.
+        weight: weight function of every operator.
+        gradient: pressure-gradient model.
+        solver: how the fluid is advanced (`SemiImplicit()`).
+    """
+
+    dim: int
+    capacity: int
+    spacing: float
+    r_e: float
+    n0: float
+    lam: float
+    grid: Grid
+    max_neighbours: int
+    courant_limit: float = 0.5
+    weight: AbstractWeight = MPSWeight()
+    gradient: AbstractGradient = CorrectedGradient(minimum_shift=True)
+    solver: AbstractSolver = SemiImplicit()
+
+    def __check_init__(self):
+        if self.dim not in (2, 3):
+            raise ValueError(f"Scene.dim must be 2 or 3, got {self.dim}.")
+        if len(self.grid.shape) != self.dim:
+            raise ValueError("Scene.grid must have one axis per dimension.")
+        if self.grid.cell_size < self.r_e:
+            raise ValueError("Scene.grid.cell_size must be at least r_e.")
+        if self.max_neighbours < 1 or self.capacity < 1:
+            raise ValueError("Scene.max_neighbours and Scene.capacity must be >= 1.")

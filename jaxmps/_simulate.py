@@ -1,0 +1,115 @@
+"""Rollouts: nested `lax.scan` with checkpointing, an observe function, and `throw`."""
+
+from collections.abc import Callable
+from typing import Any
+
+import equinox as eqx
+import jax
+from jaxtyping import Array, Float, PyTree
+
+from ._params import Params
+from ._result import Result
+from ._scene import Scene
+from ._state import State
+from ._step import _step, check_compatible
+
+
+class Frame(eqx.Module):
+    """The default observation: one full particle snapshot."""
+
+    time: Float[Array, ""]
+    position: Float[Array, "n d"]
+    velocity: Float[Array, "n d"]
+    pressure: Float[Array, " n"]
+    active: Any
+
+
+def frame(scene: Scene, state: State) -> Frame:
+    """Observe a full snapshot (time, position, velocity, pressure, active)."""
+    del scene
+    return Frame(
+        time=state.time,
+        position=state.position,
+        velocity=state.velocity,
+        pressure=state.pressure,
+        active=state.active,
+    )
+
+
+class Trajectory(eqx.Module):
+    """Output of `simulate`.
+
+    Attributes:
+        state: the final state.
+        saved: observations stacked along a leading time axis (one per save).
+        result: the first failure of the rollout, or `Result.successful`.
+    """
+
+    state: State
+    saved: PyTree
+    result: Result
+
+
+@eqx.filter_jit
+def simulate(
+    scene: Scene,
+    params: Params,
+    state: State,
+    n_steps: int,
+    save_every: int | None = None,
+    observe: Callable[[Scene, State], PyTree] = frame,
+    *,
+    throw: bool = True,
+    checkpoint: bool = True,
+) -> Trajectory:
+    """Run `n_steps` steps, observing the state every `save_every` steps.
+
+    The loop is two nested `lax.scan`s: the outer one over saves, the inner one over
+    `save_every` steps. With `checkpoint=True` the outer body is wrapped in
+    `jax.checkpoint`, so reverse-mode memory grows like (number of saves + save_every)
+    instead of n_steps; choose save_every ~ sqrt(n_steps) for the least memory. The
+    neighbour search is recomputed in the backward pass.
+
+    Args:
+        scene, params, state: the simulation (see `make_scene`, `make_params`,
+            `make_state`, or a `jaxmps.scenes` case).
+        n_steps: number of steps; a multiple of `save_every`.
+        save_every: steps between observations (default: n_steps, one save at the end).
+        observe: `(scene, state) -> PyTree` saved after every `save_every` steps. Pass a
+            module-level function (a new lambda per call recompiles). Default: `frame`.
+        throw: raise at the end if the rollout failed (neighbour overflow, pressure solve
+            not converged, non-finite state, particle left the domain, step too large).
+            Errors are only reliably raised on CPU; on GPU they may only be printed.
+            Under `vmap`, an error is raised if any batch member fails: prefer
+            `throw=False` and inspect `Trajectory.result`.
+        checkpoint: rematerialise each save block in the backward pass.
+
+    Returns:
+        A `Trajectory`.
+
+    Raises:
+        ValueError: at trace time, for inconsistent arguments.
+        EquinoxRuntimeError: at run time with `throw=True`, with the failure's message.
+    """
+    check_compatible(scene, params, state)
+    save_every = n_steps if save_every is None else save_every
+    if save_every < 1 or n_steps < 1 or n_steps % save_every:
+        raise ValueError(
+            f"n_steps={n_steps} must be a positive multiple of save_every={save_every}."
+        )
+
+    def one_step(carry: State, _):
+        carry, _ = _step(scene, params, carry)
+        return carry, None
+
+    def block(carry: State, _):
+        carry, _ = jax.lax.scan(one_step, carry, None, length=save_every)
+        return carry, observe(scene, carry)
+
+    if checkpoint:
+        block = jax.checkpoint(block)
+    final, saved = jax.lax.scan(block, state, None, length=n_steps // save_every)
+    out = Trajectory(state=final, saved=saved, result=final.result)
+    if throw:
+        out = final.result.error_if(out, final.result != Result.successful)
+    return out

@@ -1,0 +1,31 @@
+"""State: the evolving arrays of a simulation, exactly the scan carry."""
+
+import equinox as eqx
+from jaxtyping import Array, Bool, Float, Int
+
+from ._result import Result
+
+
+class State(eqx.Module):
+    """Fixed-capacity particle state. Arrays only; its structure never changes.
+
+    Attributes:
+        time: simulated time [s].
+        step: number of steps taken.
+        position: particle positions [m], shape (n, d).
+        velocity: particle velocities [m/s], shape (n, d).
+        pressure: particle pressures [Pa] (gauge; 0 on the free surface), shape (n,).
+        kind: particle kind, a `jaxmps.Kind` value, shape (n,).
+        active: whether the slot holds a live particle, shape (n,). Inactive slots are
+            the pool: they are masked out of every sum and every neighbour search.
+        result: the first failure of the run so far, or `Result.successful`.
+    """
+
+    time: Float[Array, ""]
+    step: Int[Array, ""]
+    position: Float[Array, "n d"]
+    velocity: Float[Array, "n d"]
+    pressure: Float[Array, " n"]
+    kind: Int[Array, " n"]
+    active: Bool[Array, " n"]
+    result: Result

@@ -1,0 +1,74 @@
+"""One time step: the stage pipeline and the result bookkeeping, nothing else."""
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+
+from ._params import Params
+from ._result import Result, StepInfo, update_result
+from ._scene import Scene
+from ._state import State
+from ._types import MOBILE_KINDS, is_kind
+
+
+def check_compatible(scene: Scene, params: Params, state: State) -> None:
+    """Trace-time check that Scene, Params and State belong together (ValueError)."""
+    n, d = state.position.shape[-2:]
+    if (n, d) != (scene.capacity, scene.dim):
+        raise ValueError(
+            f"State holds {n} particles in {d}-D but the Scene expects "
+            f"{scene.capacity} in {scene.dim}-D; build both from the same case."
+        )
+    if params.gravity.shape[-1] != scene.dim:
+        raise ValueError(
+            f"Params.gravity has {params.gravity.shape[-1]} components; the Scene is "
+            f"{scene.dim}-D."
+        )
+
+
+def _step(scene: Scene, params: Params, state: State) -> tuple[State, StepInfo]:
+    with jax.named_scope("fluid"):
+        new, info = scene.solver.advance(scene, params, state)
+    # Future components (rigid projection, elastic update, friction, DEM) slot in here,
+    # each as `if scene.<component> is not None: new = <module>.<stage>(...)`.
+    with jax.named_scope("result"):
+        mobile = jnp.logical_and(new.active, is_kind(new.kind, MOBILE_KINDS))
+        speed = jnp.sqrt(jnp.sum(new.velocity**2, axis=-1))
+        courant = jnp.max(jnp.where(mobile, speed, 0.0)) * params.dt / scene.spacing
+        finite = jnp.all(
+            jnp.where(
+                new.active,
+                jnp.all(jnp.isfinite(new.position), axis=-1)
+                & jnp.all(jnp.isfinite(new.velocity), axis=-1)
+                & jnp.isfinite(new.pressure),
+                True,
+            )
+        )
+        result = new.result
+        result = update_result(result, info.cell_overflow, Result.cell_overflow)
+        result = update_result(
+            result, info.neighbour_overflow, Result.neighbour_overflow
+        )
+        result = update_result(result, info.outside, Result.left_domain)
+        result = update_result(
+            result, courant > scene.courant_limit, Result.step_too_large
+        )
+        result = update_result(
+            result, ~info.pressure_converged, Result.pressure_not_converged
+        )
+        result = update_result(result, ~finite, Result.nonfinite_state)
+    return eqx.tree_at(lambda s: s.result, new, result), info
+
+
+@eqx.filter_jit
+def step(scene: Scene, params: Params, state: State) -> tuple[State, StepInfo]:
+    """Advance `state` by one time step `params.dt`.
+
+    Failures are recorded in the returned `state.result` (first failure wins); this
+    function never raises at run time. Use `simulate` for rollouts.
+
+    Returns:
+        The new state and this step's diagnostics.
+    """
+    check_compatible(scene, params, state)
+    return _step(scene, params, state)

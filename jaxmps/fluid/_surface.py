@@ -1,0 +1,44 @@
+"""Free-surface detection (seed 000 §2.4.1)."""
+
+import equinox as eqx
+import jax.numpy as jnp
+from jaxtyping import Array, Bool, Float
+
+from .._numerics import take_rows
+from .._types import PRESSURE_KINDS, is_kind
+from ..operators import Pairs
+
+
+class FreeSurface(eqx.Module):
+    """The beta rule n* < beta n0 (eq. 2.4-1) plus the isolated-surface filter of
+    Masuda et al. (OMAE 2012): a flagged particle with at most `max_surface_neighbours`
+    flagged neighbours and at least `min_neighbours` neighbours is un-flagged.
+
+    beta itself is a Params field. Defaults N = 2, lim = 10 are the seed's Table 3.1-1.
+    """
+
+    max_surface_neighbours: int = 2
+    min_neighbours: int = 10
+
+
+def detect_surface(
+    model: FreeSurface,
+    beta: Float[Array, ""],
+    n0: float,
+    number_density: Float[Array, " n"],
+    kind,
+    active: Bool[Array, " n"],
+    pairs: Pairs,
+) -> Bool[Array, " n"]:
+    """Surface flags of pressure-carrying particles (fluid, walls, bodies).
+
+    Discrete decision: carries no gradient with respect to beta or positions.
+    """
+    candidate = jnp.logical_and(active, is_kind(kind, PRESSURE_KINDS))
+    flagged = jnp.logical_and(candidate, number_density < beta * n0)
+    flagged_nbrs = jnp.sum(pairs.valid & take_rows(flagged, pairs.index), axis=1)
+    all_nbrs = jnp.sum(pairs.valid, axis=1)
+    isolated = (flagged_nbrs <= model.max_surface_neighbours) & (
+        all_nbrs >= model.min_neighbours
+    )
+    return jnp.logical_and(flagged, ~isolated)

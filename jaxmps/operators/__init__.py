@@ -1,0 +1,14 @@
+"""MPS discrete operators: pure functions of pair geometry and particle fields."""
+
+from ._density import number_density as number_density
+from ._gradient import AbstractGradient as AbstractGradient
+from ._gradient import CorrectedGradient as CorrectedGradient
+from ._gradient import MinimumPressureGradient as MinimumPressureGradient
+from ._gradient import StandardGradient as StandardGradient
+from ._laplacian import laplacian as laplacian
+from ._pairs import Pairs as Pairs
+from ._pairs import make_pairs as make_pairs
+from ._weight import AbstractWeight as AbstractWeight
+from ._weight import MPSWeight as MPSWeight
+from ._weight import lattice_offsets as lattice_offsets
+from ._weight import reference_constants as reference_constants
