@@ -19,7 +19,7 @@ def predict_velocity(
     not say how; standard MPS includes wall particles in the viscous Laplacian.
     """
     lap_u = laplacian(pairs, velocity, scene.n0, scene.lam, scene.dim)
-    accel = params.viscosity * lap_u + params.gravity
+    accel = params.viscosity * lap_u + params.gravity[None, :]
     mobile = jnp.logical_and(active, is_kind(kind, MOBILE_KINDS))
     return jnp.where(mobile[:, None], velocity + params.dt * accel, velocity)
 

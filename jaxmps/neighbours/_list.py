@@ -47,19 +47,21 @@ def _stencil(dim: int) -> np.ndarray:
 
 def _flatten(coords: Int[Array, "... d"], shape: tuple[int, ...]) -> Int[Array, "..."]:
     strides = np.cumprod((1,) + shape[:0:-1])[::-1].astype(np.int32)
-    return jnp.sum(coords * jnp.asarray(strides), axis=-1)
+    strides = jnp.asarray(strides).reshape((1,) * (coords.ndim - 1) + (-1,))
+    return jnp.sum(coords * strides, axis=-1)
 
 
 def cell_coordinates(
     grid: Grid, position: Float[Array, "n d"]
 ) -> tuple[Int[Array, "n d"], Bool[Array, " n"]]:
     """Clamped integer cell coordinates, and whether each point was outside the box."""
-    rel = (position - jnp.asarray(grid.origin, dtype=position.dtype)) / grid.cell_size
+    origin = jnp.asarray(grid.origin, dtype=position.dtype)[None, :]
+    rel = (position - origin) / grid.cell_size
     # Non-finite positions are mapped to cell 0 and reported as outside.
     finite = jnp.all(jnp.isfinite(rel), axis=-1)
     rel = jnp.where(finite[:, None], rel, 0.0)
     coords = jnp.floor(rel).astype(jnp.int32)
-    upper = jnp.asarray(grid.shape, dtype=jnp.int32) - 1
+    upper = jnp.asarray(grid.shape, dtype=jnp.int32)[None, :] - 1
     outside = jnp.any((coords < 0) | (coords > upper), axis=-1) | ~finite
     return jnp.clip(coords, 0, upper), outside
 
@@ -95,13 +97,13 @@ def build(
     cell_overflow = jnp.max(occupancy) > grid.cell_capacity
 
     stencil = jnp.asarray(_stencil(dim))
-    shape = jnp.asarray(grid.shape, dtype=jnp.int32)
+    shape = jnp.asarray(grid.shape, dtype=jnp.int32)[None, None, :]
     near = coords[:, None, :] + stencil[None, :, :]  # (n, 3^d, d)
     in_grid = jnp.all((near >= 0) & (near < shape), axis=-1)
     near_id = _flatten(jnp.clip(near, 0, shape - 1), grid.shape)
     first = start[near_id]
     filled = jnp.where(in_grid, jnp.minimum(occupancy[near_id], grid.cell_capacity), 0)
-    slot = jnp.arange(grid.cell_capacity, dtype=jnp.int32)
+    slot = jnp.arange(grid.cell_capacity, dtype=jnp.int32)[None, None, :]
     pos = first[..., None] + slot  # (n, 3^d, C)
     candidate = jnp.where(
         slot < filled[..., None], order[jnp.clip(pos, 0, n - 1)], n

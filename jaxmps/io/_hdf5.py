@@ -1,0 +1,478 @@
+"""Run files: the HDF5 layout of DESIGN.md §5 and its XDMF sidecar for ParaView."""
+
+import dataclasses
+import json
+import math
+import os
+from pathlib import Path
+from typing import Any
+from xml.sax.saxutils import escape, quoteattr
+
+import h5py
+import jax.numpy as jnp
+import numpy as np
+
+FORMAT = "jaxmps-run"
+FORMAT_VERSION = 1
+
+# /state fields, in State order (result is stored as its integer value).
+STATE_FIELDS = (
+    "time",
+    "step",
+    "position",
+    "velocity",
+    "pressure",
+    "kind",
+    "active",
+    "result",
+)
+FRAME_FIELDS = ("time", "step", "position", "velocity", "pressure", "active")
+
+
+def _jaxmps_version() -> str:
+    """The installed jaxmps version (imported lazily: `jaxmps` imports this module)."""
+    from .. import __version__
+
+    return __version__
+
+
+def _jsonable(value: Any) -> Any:
+    """Convert numpy/jax scalars and arrays, tuples and paths into JSON values."""
+    if value is None or isinstance(value, (bool, str)):
+        return value
+    if isinstance(value, (int, float)):
+        if isinstance(value, float) and not math.isfinite(value):
+            return repr(value)
+        return value
+    if isinstance(value, dict):
+        return {str(k): _jsonable(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_jsonable(v) for v in value]
+    if isinstance(value, Path):
+        return str(value)
+    if isinstance(value, (np.ndarray, np.generic)) or hasattr(value, "__jax_array__"):
+        return _jsonable(np.asarray(value).tolist())
+    try:
+        return _jsonable(np.asarray(value).tolist())
+    except Exception:  # noqa: BLE001 - last resort: keep a readable record
+        return repr(value)
+
+
+def config_json(config: dict) -> str:
+    """`case.config` as a JSON string (numpy values converted, None kept as null)."""
+    return json.dumps(_jsonable(dict(config)), sort_keys=True)
+
+
+def _result_value(result: Any) -> int:
+    """The integer value of a `Result` item (or of an integer)."""
+    value = getattr(result, "_value", result)
+    return int(np.asarray(value))
+
+
+def result_from_value(value: int):
+    """The `jaxmps.Result` item whose integer value is `value`."""
+    from .._result import Result
+
+    for item in Result._name_to_item.values():
+        if int(np.asarray(item._value)) == int(value):
+            return item
+    raise ValueError(f"No jaxmps.Result has the integer value {value}.")
+
+
+def _open_checked(path: str | os.PathLike, mode: str = "r") -> h5py.File:
+    """Open a run file, raising ValueError (naming the file) if it is not one."""
+    path = Path(path)
+    if not path.exists():
+        raise FileNotFoundError(f"Run file '{path}' does not exist.")
+    try:
+        f = h5py.File(path, mode)
+    except OSError as e:
+        raise ValueError(
+            f"'{path}' is not a jaxmps run file: it cannot be opened as HDF5 ({e})."
+        ) from None
+    try:
+        fmt = f.attrs.get("format")
+        if fmt is None:
+            raise ValueError(
+                f"'{path}' is not a jaxmps run file: the root attribute 'format' is "
+                f"missing (expected format='{FORMAT}')."
+            )
+        if isinstance(fmt, bytes):
+            fmt = fmt.decode()
+        if str(fmt) != FORMAT:
+            raise ValueError(
+                f"'{path}' is not a jaxmps run file: format={fmt!r}, expected "
+                f"'{FORMAT}'."
+            )
+        version = f.attrs.get("format_version")
+        if version is None or int(version) > FORMAT_VERSION:
+            raise ValueError(
+                f"'{path}' has format_version={version!r}; this jaxmps reads "
+                f"format_version <= {FORMAT_VERSION}."
+            )
+        for group in ("config", "particles", "frames", "probes"):
+            if group not in f:
+                raise ValueError(f"'{path}' is a damaged run file: '/{group}' is missing.")
+    except Exception:
+        f.close()
+        raise
+    return f
+
+
+def _append(dataset: h5py.Dataset, values: np.ndarray) -> None:
+    """Append `values` along axis 0 of a resizable dataset."""
+    values = np.asarray(values, dtype=dataset.dtype)
+    start = dataset.shape[0]
+    dataset.resize(start + values.shape[0], axis=0)
+    dataset[start:] = values
+
+
+def _resizable(group: h5py.Group, name: str, sample: np.ndarray) -> h5py.Dataset:
+    """A dataset of 0 rows shaped like one row of `sample`, resizable along axis 0."""
+    sample = np.asarray(sample)
+    row = sample.shape[1:]
+    row_bytes = max(1, int(np.prod(row, dtype=np.int64)) * sample.dtype.itemsize)
+    chunk_rows = max(1, min(64, (1 << 20) // row_bytes))
+    return group.create_dataset(
+        name,
+        shape=(0, *row),
+        maxshape=(None, *row),
+        dtype=sample.dtype,
+        chunks=(chunk_rows, *row),
+    )
+
+
+class RunWriter:
+    """Writes a run file incrementally: frames and probes are appended between
+    chunks of a run, the state is overwritten; the XDMF sidecar is kept in step.
+
+    Args:
+        path: the run file (`.h5`); the sidecar is the same name with `.xdmf`.
+        case: the `jaxmps.scenes.Case` being run (its config, particle kinds, dt).
+        append: open an existing run file and append to it (restart) instead of
+            creating a new one.
+
+    Example:
+        ```python
+        with RunWriter("run.h5", case) as w:
+            w.append_frames(trajectory.saved)
+            w.write_state(trajectory.state)
+        ```
+    """
+
+    def __init__(self, path: str | os.PathLike, case: Any, append: bool = False):
+        self.path = Path(path)
+        self.xdmf_path = self.path.with_suffix(".xdmf")
+        self.dt = float(np.asarray(case.params.dt))
+        if append:
+            self.file = _open_checked(self.path, "r+")
+            n = self.file["particles/kind"].shape[0]
+            if n != case.state.position.shape[0]:
+                self.file.close()
+                raise ValueError(
+                    f"'{self.path}' holds {n} particles but the case has "
+                    f"{case.state.position.shape[0]}: it is not a run of this case."
+                )
+            return
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        self.file = h5py.File(self.path, "w")
+        f = self.file
+        position = np.asarray(case.state.position)
+        f.attrs["format"] = FORMAT
+        f.attrs["format_version"] = FORMAT_VERSION
+        f.attrs["jaxmps_version"] = _jaxmps_version()
+        f.attrs["scene"] = str(case.name)
+        f.attrs["dim"] = int(position.shape[1])
+        f.attrs["spacing"] = float(case.scene.spacing)
+        f.attrs["dt"] = self.dt
+        f.create_dataset("config", data=config_json(case.config))
+        particles = f.create_group("particles")
+        n = position.shape[0]
+        particles.create_dataset("kind", data=np.asarray(case.state.kind).astype(np.int8))
+        particles.create_dataset("body", data=np.full(n, -1, np.int32))
+        f.create_group("frames")
+        f.create_group("probes")
+        f.flush()
+
+    # -- context manager -----------------------------------------------------------
+    def __enter__(self) -> "RunWriter":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    # -- appending -----------------------------------------------------------------
+    def append_frames(self, frame_batch: Any, step: Any = None) -> None:
+        """Append frames stacked along axis 0 (a `jaxmps.Frame` from `simulate`).
+
+        Args:
+            frame_batch: a `Frame` (or any object with `time`, `position`, `velocity`,
+                `pressure`, `active`) whose arrays have a leading save axis.
+            step: the step number of each frame; default: `round(time / dt)`, or
+                `frame_batch.step` if it has one.
+        """
+        time = np.atleast_1d(np.asarray(frame_batch.time))
+        if step is None:
+            step = getattr(frame_batch, "step", None)
+        if step is None:
+            step = np.rint(time / self.dt)
+        rows = {
+            "time": time,
+            "step": np.atleast_1d(np.asarray(step)).astype(np.int64),
+            "position": np.asarray(frame_batch.position),
+            "velocity": np.asarray(frame_batch.velocity),
+            "pressure": np.asarray(frame_batch.pressure),
+            "active": np.asarray(frame_batch.active).astype(bool),
+        }
+        if rows["position"].ndim == 2:  # a single frame
+            rows = {k: (v if k in ("time", "step") else v[None]) for k, v in rows.items()}
+        frames = self.file["frames"]
+        for name in FRAME_FIELDS:
+            if name not in frames:
+                _resizable(frames, name, rows[name])
+            _append(frames[name], rows[name])
+        self.file.flush()
+        self.write_xdmf()
+
+    def append_probes(self, dict_batch: dict) -> None:
+        """Append probe values: a dict {"time": (m,), name: (m, ...)}."""
+        probes = self.file["probes"]
+        for name, values in dict_batch.items():
+            values = np.asarray(values)
+            if values.ndim == 0:
+                values = values[None]
+            if name not in probes:
+                _resizable(probes, name, values)
+            _append(probes[name], values)
+        self.file.flush()
+
+    def write_state(self, state: Any) -> None:
+        """Overwrite /state with `state` (a full `jaxmps.State`), for restarts."""
+        if "state" in self.file:
+            del self.file["state"]
+        group = self.file.create_group("state")
+        for name in STATE_FIELDS:
+            value = getattr(state, name)
+            if name == "result":
+                value = _result_value(value)
+            group.create_dataset(name, data=np.asarray(value))
+        self.file.flush()
+
+    def truncate(self, n_frames: int) -> None:
+        """Keep only the first `n_frames` frames and probe rows (drop frames computed
+        after the state a restart continues from)."""
+        for group in ("frames", "probes"):
+            for dataset in self.file[group].values():
+                if dataset.shape[0] > n_frames:
+                    dataset.resize(n_frames, axis=0)
+        self.file.flush()
+        self.write_xdmf()
+
+    def write_xdmf(self) -> None:
+        """(Re)write the XDMF sidecar describing every frame in the file."""
+        write_xdmf(self.file, self.xdmf_path, self.path.name)
+
+    def close(self) -> None:
+        """Flush and close the file (idempotent)."""
+        if self.file.id.valid:
+            self.file.close()
+
+
+def _data_item(h5name: str, dataset: str, shape: tuple, dtype: np.dtype) -> str:
+    dtype = np.dtype(dtype)
+    kind = {"f": "Float", "i": "Int", "u": "UInt", "b": "UChar"}[dtype.kind]
+    if dtype.itemsize == 1 and kind in ("Int", "UInt"):
+        kind = "Char" if kind == "Int" else "UChar"
+    dims = " ".join(str(s) for s in shape)
+    return (
+        f'<DataItem Dimensions="{dims}" NumberType="{kind}" '
+        f'Precision="{dtype.itemsize}" Format="HDF">'
+        f"{escape(h5name)}:{dataset}</DataItem>"
+    )
+
+
+def _hyperslab(h5name: str, dataset: str, shape: tuple, dtype, index: int) -> str:
+    """XML for row `index` of a (t, ...) dataset."""
+    rank = len(shape)
+    start = [index] + [0] * (rank - 1)
+    stride = [1] * rank
+    count = [1] + list(shape[1:])
+    row = " ".join(str(s) for s in shape[1:])
+    selection = " ".join(str(v) for v in start + stride + count)
+    return (
+        f'<DataItem ItemType="HyperSlab" Dimensions="{row}" Type="HyperSlab">'
+        f'<DataItem Dimensions="3 {rank}" Format="XML">{selection}</DataItem>'
+        f"{_data_item(h5name, dataset, shape, dtype)}</DataItem>"
+    )
+
+
+def write_xdmf(f: h5py.File, xdmf_path: str | os.PathLike, h5name: str) -> None:
+    """Write an XDMF 3 temporal collection of Polyvertex grids, one per frame, whose
+    geometry and Pressure/Velocity/Kind attributes are hyperslabs of the HDF5 file.
+
+    Args:
+        f: the open run file.
+        xdmf_path: where to write the sidecar.
+        h5name: the run file's name relative to the sidecar.
+    """
+    frames = f["frames"]
+    grids = []
+    if "position" in frames and frames["position"].shape[0] > 0:
+        pos = frames["position"]
+        t, n, d = pos.shape
+        times = frames["time"][...]
+        geometry = "XYZ" if d == 3 else "XY"
+        kind = f["particles/kind"]
+        for i in range(t):
+            grids.append(
+                f'<Grid Name="frame_{i}" GridType="Uniform">'
+                f'<Time Value="{float(times[i])!r}"/>'
+                f'<Topology TopologyType="Polyvertex" NumberOfElements="{n}" '
+                f'NodesPerElement="1"/>'
+                f'<Geometry GeometryType="{geometry}">'
+                f"{_hyperslab(h5name, '/frames/position', pos.shape, pos.dtype, i)}"
+                f"</Geometry>"
+                f'<Attribute Name="Pressure" AttributeType="Scalar" Center="Node">'
+                f"{_hyperslab(h5name, '/frames/pressure', frames['pressure'].shape, frames['pressure'].dtype, i)}"
+                f"</Attribute>"
+                f'<Attribute Name="Velocity" AttributeType="Vector" Center="Node">'
+                f"{_hyperslab(h5name, '/frames/velocity', frames['velocity'].shape, frames['velocity'].dtype, i)}"
+                f"</Attribute>"
+                f'<Attribute Name="Kind" AttributeType="Scalar" Center="Node">'
+                f"{_data_item(h5name, '/particles/kind', kind.shape, kind.dtype)}"
+                f"</Attribute>"
+                f"</Grid>"
+            )
+    name = quoteattr(str(f.attrs.get("scene", "run")))
+    text = (
+        '<?xml version="1.0" ?>\n'
+        '<!DOCTYPE Xdmf SYSTEM "Xdmf.dtd" []>\n'
+        '<Xdmf Version="3.0">\n<Domain>\n'
+        f'<Grid Name={name} GridType="Collection" CollectionType="Temporal">\n'
+        + "\n".join(grids)
+        + "\n</Grid>\n</Domain>\n</Xdmf>\n"
+    )
+    tmp = Path(str(xdmf_path) + ".tmp")
+    tmp.write_text(text)
+    os.replace(tmp, xdmf_path)
+
+
+@dataclasses.dataclass
+class RunData:
+    """Everything in a run file, as numpy arrays.
+
+    Attributes:
+        path: the file read.
+        attrs: root attributes (format, format_version, jaxmps_version, scene, dim,
+            spacing, dt).
+        config: the scene overrides the run was built with.
+        particles: {"kind": (n,) int8, "body": (n,) int32}.
+        frames: {"time", "step", "position", "velocity", "pressure", "active"}.
+        probes: {"time": (m,), name: (m, ...)}.
+        state: the last full state's fields ({} if none was written).
+    """
+
+    path: Path
+    attrs: dict
+    config: dict
+    particles: dict
+    frames: dict
+    probes: dict
+    state: dict
+
+
+def _decode(value: Any) -> Any:
+    if isinstance(value, bytes):
+        return value.decode()
+    if isinstance(value, np.generic):
+        return value.item()
+    return value
+
+
+def read_run(path: str | os.PathLike) -> RunData:
+    """Read a whole run file.
+
+    Raises:
+        FileNotFoundError: if `path` does not exist.
+        ValueError: if it is not a jaxmps run file (not HDF5, wrong or missing
+            `format` attribute, missing groups), naming the file.
+    """
+    with _open_checked(path) as f:
+        attrs = {k: _decode(v) for k, v in f.attrs.items()}
+        try:
+            config = json.loads(_decode(f["config"][()]))
+        except (TypeError, ValueError) as e:
+            raise ValueError(f"'{path}': /config is not valid JSON ({e}).") from None
+        particles = {k: v[...] for k, v in f["particles"].items()}
+        frames = {k: v[...] for k, v in f["frames"].items()}
+        probes = {k: v[...] for k, v in f["probes"].items()}
+        state = {k: v[()] for k, v in f["state"].items()} if "state" in f else {}
+    return RunData(Path(path), attrs, config, particles, frames, probes, state)
+
+
+def load_state(path: str | os.PathLike, case: Any):
+    """The last full State of a run file, cast to the dtypes of `case.state`.
+
+    Args:
+        path: a run file with a /state group.
+        case: the case the run was made from (gives dtypes and checks shapes).
+
+    Returns:
+        A `jaxmps.State` ready to be passed to `simulate` with `case.scene`.
+
+    Raises:
+        ValueError: if the file is not a run file, has no /state, or its shapes do not
+            match the case.
+    """
+    from .._state import State
+
+    with _open_checked(path) as f:
+        if "state" not in f:
+            raise ValueError(f"'{path}' has no /state group: nothing to restart from.")
+        group = f["state"]
+        missing = [k for k in STATE_FIELDS if k not in group]
+        if missing:
+            raise ValueError(f"'{path}': /state lacks {missing}.")
+        values = {k: group[k][()] for k in STATE_FIELDS}
+    fields = {}
+    for name in STATE_FIELDS[:-1]:
+        like = getattr(case.state, name)
+        value = np.asarray(values[name])
+        if value.shape != like.shape:
+            raise ValueError(
+                f"'{path}': /state/{name} has shape {value.shape} but the case expects "
+                f"{tuple(like.shape)}: it is not a run of this case."
+            )
+        fields[name] = jnp.asarray(value, dtype=like.dtype)
+    return State(**fields, result=result_from_value(int(values["result"])))
+
+
+def write_run(
+    path: str | os.PathLike,
+    case: Any,
+    frames: Any,
+    probes: dict | None = None,
+    final_state: Any = None,
+    step: Any = None,
+) -> Path:
+    """Write a complete run file in one go (see `RunWriter` for incremental writing).
+
+    Args:
+        path: the `.h5` file to create (overwritten); `.xdmf` is written next to it.
+        case: the `jaxmps.scenes.Case` that was run.
+        frames: stacked frames (`Trajectory.saved` with the default `frame` observe).
+        probes: optional {"time": (m,), name: (m,)} probe values.
+        final_state: optional final `State`, stored under /state.
+        step: optional step numbers of the frames.
+
+    Returns:
+        The path written.
+    """
+    with RunWriter(path, case) as w:
+        if frames is not None:
+            w.append_frames(frames, step=step)
+        if probes:
+            w.append_probes(probes)
+        if final_state is not None:
+            w.write_state(final_state)
+    return Path(path)

@@ -1,0 +1,127 @@
+"""Shared construction of the built-in scenes: overrides, tanks, Scene/State."""
+
+import math
+from typing import Any
+
+import numpy as np
+
+from .. import geometry
+from .._build import make_params, make_scene, make_state
+from .._types import Kind
+from ..fluid import SemiImplicit
+
+# Overrides every scene accepts, with their defaults (None: scene-specific).
+COMMON = {
+    "solver": "semi_implicit",
+    "scheme": "standard",
+    "dt": None,
+    "viscosity": 1.0e-6,
+    "density": 1000.0,
+    "gravity": 9.81,
+    "beta": 0.97,
+    "rtol": None,
+    "max_iterations": 2000,
+    "max_neighbours": None,
+    "cell_capacity": None,
+    "courant": 0.2,
+    "domain_margin": None,
+}
+
+SOLVERS = ("semi_implicit",)
+SCHEMES = ("standard",)
+
+
+def resolve(name: str, specific: dict[str, Any], overrides: dict[str, Any]) -> dict:
+    """Merge defaults and overrides; unknown names are an error listing valid ones."""
+    defaults = {**specific, **COMMON}
+    unknown = sorted(set(overrides) - set(defaults))
+    if unknown:
+        raise ValueError(
+            f"Unknown parameter(s) {unknown} for scene '{name}'. Valid parameters: "
+            f"{', '.join(sorted(defaults))}."
+        )
+    config = {**defaults, **overrides}
+    if config["solver"] not in SOLVERS:
+        raise ValueError(
+            f"solver={config['solver']!r} is not available; valid: {SOLVERS} "
+            "(the explicit solver is planned)."
+        )
+    if config["scheme"] not in SCHEMES:
+        raise ValueError(
+            f"scheme={config['scheme']!r} is not available; valid: {SCHEMES} "
+            "(the high-accuracy scheme is planned)."
+        )
+    if config.get("dim", 2) not in (2, 3):
+        raise ValueError(f"dim must be 2 or 3, got {config.get('dim')}.")
+    if not config["spacing"] > 0:
+        raise ValueError("spacing must be positive.")
+    return config
+
+
+def default_dt(config: dict, velocity_scale: float) -> float:
+    """dt = courant * l0 / U for the scene's velocity scale U (if dt not given)."""
+    if config["dt"] is not None:
+        return float(config["dt"])
+    return float(config["courant"] * config["spacing"] / velocity_scale)
+
+
+def tank_case(
+    config: dict,
+    fluid_lower,
+    fluid_upper,
+    tank_lower,
+    tank_upper,
+    velocity_scale: float,
+):
+    """Fluid block in an open tank of walls + dummies: (scene, params, state, extras)."""
+    l0 = config["spacing"]
+    layers = geometry.layers_for(2.1)
+    fluid = geometry.block(fluid_lower, fluid_upper, l0)
+    walls, wall_kind = geometry.tank(tank_lower, tank_upper, l0, layers=layers)
+    position = np.concatenate([fluid, walls])
+    kind = np.concatenate([np.full(len(fluid), int(Kind.FLUID), np.int32), wall_kind])
+    height = float(tank_upper[-1] - tank_lower[-1])
+    margin = config["domain_margin"]
+    margin = 0.5 * height if margin is None else float(margin)
+    lower = np.asarray(tank_lower, float) - layers * l0 - 2 * l0
+    upper = np.asarray(tank_upper, float) + layers * l0 + 2 * l0
+    upper[-1] = tank_upper[-1] + margin
+    solver = SemiImplicit(
+        rtol=config["rtol"], max_iterations=int(config["max_iterations"])
+    )
+    scene = make_scene(
+        position,
+        l0,
+        (lower, upper),
+        solver=solver,
+        max_neighbours=config["max_neighbours"],
+        cell_capacity=config["cell_capacity"],
+    )
+    dim = position.shape[1]
+    params = make_params(
+        dim,
+        dt=default_dt(config, velocity_scale),
+        density=config["density"],
+        viscosity=config["viscosity"],
+        gravity=config["gravity"],
+        beta=config["beta"],
+    )
+    state = make_state(scene, position, kind)
+    return scene, params, state, dict(walls=walls, wall_kind=wall_kind)
+
+
+def nearest_wall(walls: np.ndarray, wall_kind: np.ndarray, point) -> tuple[int, ...]:
+    """Index (into the state, walls follow the fluid) of the wall particle nearest
+    `point`; returned as a tuple for `PressureAt`. Caller adds the fluid offset."""
+    candidates = np.where(wall_kind == int(Kind.WALL))[0]
+    d = np.linalg.norm(walls[candidates] - np.asarray(point), axis=1)
+    return (int(candidates[np.argmin(d)]),)
+
+
+def whole(value: float, spacing: float) -> float:
+    """Round a length to a whole number of spacings (at least one)."""
+    return max(1, round(value / spacing)) * spacing
+
+
+def velocity_scale(height: float, gravity: float) -> float:
+    return math.sqrt(2.0 * max(gravity, 1e-9) * height)

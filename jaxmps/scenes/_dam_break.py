@@ -1,0 +1,68 @@
+"""Collapse of a water column (Martin & Moyce 1952; Koshizuka & Oka 1996)."""
+
+from ._case import Case
+from ._common import nearest_wall, resolve, tank_case, velocity_scale, whole
+from ._probes import FrontPosition, PressureAt, WaterLevel
+
+DEFAULTS = {
+    "column_width": 0.146,
+    "column_height": 0.292,
+    "tank_length": 0.584,
+    "tank_height": 0.438,
+    "tank_width": 0.0365,  # 3-D only: extent across the tank
+    "spacing": 0.00365,  # 40 particles across the column
+    "dim": 2,
+    "gauge_x": 0.438,  # water-level gauge position [m]
+    "t_end": 0.3,
+}
+
+
+def dam_break(**overrides) -> Case:
+    """Column `column_width` x `column_height` at the left wall of a tank
+    `tank_length` long; default Koshizuka & Oka's 0.146 m x 0.292 m in 0.584 m.
+
+    Probes: `front` (surge-front position from the left wall, contiguous fluid within
+    2 l0 of the floor), `column_height` (residual height at the left wall),
+    `gauge` (water level at `gauge_x`), `pressure_right_wall` (pressure-wall particle
+    on the right wall nearest height l0... 2 l0) and `pressure_left_wall`.
+    """
+    c = resolve("dam_break", DEFAULTS, overrides)
+    l0, dim = c["spacing"], int(c["dim"])
+    a, h = whole(c["column_width"], l0), whole(c["column_height"], l0)
+    length, height = whole(c["tank_length"], l0), whole(c["tank_height"], l0)
+    if a >= length or h >= height:
+        raise ValueError(
+            "The column must fit in the tank: column_width < tank_length and "
+            "column_height < tank_height."
+        )
+    across = [whole(c["tank_width"], l0)] if dim == 3 else []
+    scene, params, state, extra = tank_case(
+        c,
+        [0.0] * dim,
+        [a] + across + [h],
+        [0.0] * dim,
+        [length] + across + [height],
+        velocity_scale(h, c["gravity"]),
+    )
+    n_fluid = int(state.active.sum()) - len(extra["walls"])
+    mid = [0.5 * across[0]] if dim == 3 else []
+    right = nearest_wall(extra["walls"], extra["wall_kind"], [length + 0.5 * l0] + mid + [1.5 * l0])
+    left = nearest_wall(extra["walls"], extra["wall_kind"], [-0.5 * l0] + mid + [1.5 * l0])
+    probes = (
+        FrontPosition("front", 0.0, 0.0, 2 * l0, l0, int(round(length / l0)) // 2 + 1),
+        WaterLevel("column_height", 0.5 * l0, 0.0, l0),
+        WaterLevel("gauge", float(c["gauge_x"]), 0.0, l0),
+        PressureAt("pressure_right_wall", tuple(n_fluid + i for i in right)),
+        PressureAt("pressure_left_wall", tuple(n_fluid + i for i in left)),
+    )
+    config = {**c, "column_width": a, "column_height": h, "tank_length": length,
+              "tank_height": height}
+    return Case(
+        name="dam_break",
+        scene=scene,
+        params=params,
+        state=state,
+        probes=probes,
+        t_end=float(c["t_end"]),
+        config=config,
+    )

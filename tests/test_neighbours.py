@@ -1,0 +1,78 @@
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+from helpers import brute_force_neighbours, listed
+
+from jaxmps.neighbours import build, Grid
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+def test_matches_brute_force_random_order_with_inactive(rng, dim):
+    n = 400 if dim == 2 else 600
+    x = rng.uniform(0.0, 1.0, (n, dim))
+    active = rng.uniform(size=n) > 0.2
+    radius = 0.15 if dim == 2 else 0.25
+    grid = Grid(origin=(0.0,) * dim, cell_size=radius, shape=(7,) * dim,
+                cell_capacity=60)
+    nbrs = jax.jit(build, static_argnums=(0, 3, 4))(
+        grid, jnp.asarray(x), jnp.asarray(active), 120, radius
+    )
+    assert not bool(nbrs.neighbour_overflow) and not bool(nbrs.cell_overflow)
+    ref = brute_force_neighbours(x, active, radius)
+    np.testing.assert_array_equal(listed(nbrs.index, n), ref)
+    np.testing.assert_array_equal(np.asarray(nbrs.count), ref.sum(1))
+
+
+def test_permutation_invariance(rng):
+    x = rng.uniform(0.0, 1.0, (300, 2))
+    active = np.ones(300, bool)
+    grid = Grid(origin=(0.0, 0.0), cell_size=0.1, shape=(10, 10), cell_capacity=30)
+    perm = rng.permutation(300)
+    a = build(grid, jnp.asarray(x), jnp.asarray(active), 40, 0.1)
+    b = build(grid, jnp.asarray(x[perm]), jnp.asarray(active), 40, 0.1)
+    inv = np.argsort(perm)
+    la = listed(a.index, 300)
+    lb = listed(b.index, 300)[inv][:, inv]
+    np.testing.assert_array_equal(la, lb)
+
+
+def test_deliberate_overflows():
+    # A clump of 12 nearly coincident particles: 11 neighbours each.
+    x = np.concatenate([np.full((12, 2), 0.55), np.full((3, 2), 0.25)])
+    x = x + np.linspace(0, 1e-3, 15)[:, None]
+    x, active = jnp.asarray(x), jnp.ones(15, bool)
+
+    def grid(capacity):
+        return Grid(origin=(0.0, 0.0), cell_size=0.1, shape=(10, 10),
+                    cell_capacity=capacity)
+
+    too_few_slots = build(grid(12), x, active, 5, 0.1)
+    assert bool(too_few_slots.neighbour_overflow)
+    assert not bool(too_few_slots.cell_overflow)
+    assert int(too_few_slots.count.max()) == 11
+    too_small_cells = build(grid(4), x, active, 11, 0.1)
+    assert bool(too_small_cells.cell_overflow)
+    enough = build(grid(12), x, active, 11, 0.1)
+    assert not bool(enough.neighbour_overflow) and not bool(enough.cell_overflow)
+
+
+def test_particles_outside_domain_flagged_not_dropped(rng):
+    x = rng.uniform(0.0, 1.0, (200, 2))
+    x[:5] = [[-0.05, 0.5], [-0.08, 0.52], [1.3, 0.2], [1.32, 0.21], [0.5, -0.4]]
+    grid = Grid(origin=(0.0, 0.0), cell_size=0.1, shape=(10, 10), cell_capacity=40)
+    active = np.ones(200, bool)
+    nbrs = build(grid, jnp.asarray(x), jnp.asarray(active), 60, 0.1)
+    out = np.asarray(nbrs.outside)
+    assert out[:5].all() and not out[5:].any()
+    # Escaped particles still find each other and the particles near the boundary.
+    np.testing.assert_array_equal(
+        listed(nbrs.index, 200), brute_force_neighbours(x, active, 0.1)
+    )
+
+
+def test_nonfinite_positions_are_flagged():
+    x = np.array([[0.5, 0.5], [np.nan, 0.5], [0.52, 0.5]])
+    grid = Grid(origin=(0.0, 0.0), cell_size=0.1, shape=(10, 10), cell_capacity=4)
+    nbrs = build(grid, jnp.asarray(x), jnp.ones(3, bool), 4, 0.1)
+    assert bool(nbrs.outside[1])

@@ -1,0 +1,100 @@
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import jaxmps
+from jaxmps.geometry import block
+from jaxmps.neighbours import build
+from jaxmps.operators import (
+    CorrectedGradient,
+    laplacian,
+    make_pairs,
+    MPSWeight,
+    number_density,
+    reference_constants,
+    StandardGradient,
+)
+
+
+@pytest.mark.parametrize(
+    "dim, n0, lam", [(2, 6.539697, 1.388351), (3, 14.418575, 1.701738)]
+)
+def test_reference_constants(dim, n0, lam):
+    got_n0, got_lam = reference_constants(MPSWeight(), dim, 2.1)
+    assert got_n0 == pytest.approx(n0, rel=1e-6)
+    assert got_lam == pytest.approx(lam, rel=1e-6)
+
+
+def test_weight_finite_value_and_gradient_at_zero_and_padding():
+    w = MPSWeight()
+    r = jnp.array([0.0, 1e-30, 0.5, 2.1, 3.0])
+    valid = jnp.array([False, False, True, True, True])
+    out = w(r, valid, 2.1)
+    assert np.all(np.isfinite(out))
+    np.testing.assert_allclose(out, [0, 0, 2.1 / 0.5 - 1, 0, 0])
+    g = jax.grad(lambda r: w(r, valid, 2.1).sum())(r)
+    assert np.all(np.isfinite(g))
+    # Through positions: coincident particles and padded slots give finite gradients.
+    x = jnp.array([[0.0, 0.0], [0.0, 0.0], [0.5, 0.0]])
+    index = jnp.array([[1, 2, 3], [0, 2, 3], [0, 1, 3]])
+    g = jax.grad(lambda x: make_pairs(index, x, w, 2.1).weight.sum())(x)
+    assert np.all(np.isfinite(g))
+
+
+def _lattice(dim, l0=1.0, size=9, jitter=0.0, rng=None):
+    x = block([0.0] * dim, [size * l0] * dim, l0)
+    if jitter:
+        x = x + rng.uniform(-jitter, jitter, x.shape) * l0
+    scene = jaxmps.make_scene(x, l0, (np.full(dim, -3.0), np.full(dim, size + 3.0)))
+    nbrs = build(scene.grid, jnp.asarray(x), jnp.ones(len(x), bool),
+                 scene.max_neighbours, scene.r_e)
+    pairs = make_pairs(nbrs.index, jnp.asarray(x), scene.weight, scene.r_e)
+    interior = np.all((x > 3.0) & (x < size - 3.0), axis=1)
+    return scene, x, pairs, interior
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+def test_number_density_interior_equals_n0(dim):
+    scene, x, pairs, interior = _lattice(dim, size=9 if dim == 2 else 8)
+    n = np.asarray(number_density(pairs))
+    np.testing.assert_allclose(n[interior], scene.n0, rtol=1e-12)
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+def test_gradients_exact_on_linear_field_on_lattice(dim):
+    scene, x, pairs, interior = _lattice(dim, size=9 if dim == 2 else 8)
+    a = np.arange(1, dim + 1) * 0.7
+    phi = jnp.asarray(x @ a + 3.0)
+    include = pairs.valid
+    for grad in (StandardGradient(), CorrectedGradient()):
+        g = np.asarray(grad(pairs, phi, scene.n0, dim, include))
+        np.testing.assert_allclose(g[interior], np.tile(a, (interior.sum(), 1)),
+                                   rtol=1e-10)
+
+
+def test_corrected_gradient_exact_on_irregular_cloud(rng):
+    scene, x, pairs, interior = _lattice(2, size=10, jitter=0.2, rng=rng)
+    a = np.array([1.3, -0.4])
+    phi = jnp.asarray(x @ a)
+    g = np.asarray(CorrectedGradient()(pairs, phi, scene.n0, 2, pairs.valid))
+    np.testing.assert_allclose(g[interior], np.tile(a, (interior.sum(), 1)),
+                               rtol=1e-10)
+    # The standard gradient is not exact there (so the test above can fail).
+    s = np.asarray(StandardGradient()(pairs, phi, scene.n0, 2, pairs.valid))
+    assert np.abs(s[interior] - a).max() > 1e-3
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+def test_laplacian_of_r_squared_on_lattice(dim):
+    l0 = 0.01
+    scene, x, pairs, interior = _lattice(dim, size=9 if dim == 2 else 8)
+    # rescale to l0 = 0.01 to check the units of lambda
+    scene2 = jaxmps.make_scene(x * l0, l0, (np.full(dim, -3 * l0), np.full(dim, 12 * l0)))
+    nbrs = build(scene2.grid, jnp.asarray(x * l0), jnp.ones(len(x), bool),
+                 scene2.max_neighbours, scene2.r_e)
+    p2 = make_pairs(nbrs.index, jnp.asarray(x * l0), scene2.weight, scene2.r_e)
+    phi = jnp.asarray(np.sum((x * l0) ** 2, axis=1))
+    lap = np.asarray(laplacian(p2, phi, scene2.n0, scene2.lam, dim))
+    np.testing.assert_allclose(lap[interior], 2.0 * dim, rtol=1e-10)
+    del pairs, scene
