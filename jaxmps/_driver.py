@@ -1,4 +1,4 @@
-"""`jaxmps.run`: the host driver (chunks of `simulate`, progress, HDF5, result check)."""
+"""`jaxmps.run`: the host driver (chunked `simulate`, progress, HDF5, result check)."""
 
 import dataclasses
 import math
@@ -138,7 +138,11 @@ def run(
         writer = RunWriter(out, case, append=append)
         if append:
             # Drop frames computed after the state we continue from (a failed chunk).
-            steps = writer.file["frames/step"][...] if "step" in writer.file["frames"] else []
+            steps = (
+                writer.file["frames/step"][...]
+                if "step" in writer.file["frames"]
+                else []
+            )
             writer.truncate(int(np.sum(np.asarray(steps) <= done)))
     try:
         if not append:
@@ -191,7 +195,7 @@ def run(
                     where = f" Written so far: '{out}'." if out is not None else ""
                     raise RuntimeError(
                         f"The run of '{case.name}' failed between t={t_good:.6g} s and "
-                        f"t={t_fail:.6g} s (step <= {int(np.asarray(steps)[-1])}): "
+                        f"t={t_fail:.6g} s (by step {int(np.asarray(steps)[-1])}): "
                         f"{message}{where}"
                     )
                 state = trajectory.state

@@ -61,7 +61,10 @@ def _cmd_run(args) -> int:
     scene = args.scene
     if args.restart:
         if not out.exists():
-            print(f"jaxmps run: error: --restart: '{out}' does not exist.", file=sys.stderr)
+            print(
+                f"jaxmps run: error: --restart: '{out}' does not exist.",
+                file=sys.stderr,
+            )
             return 2
         try:
             data = read_run(out)
@@ -111,33 +114,45 @@ def _cmd_info(args) -> int:
         print(f"jaxmps info: error: {e}", file=sys.stderr)
         return 2
     a = data.attrs
-    print(f"{data.path}: jaxmps run file (format_version {a.get('format_version')}, "
-          f"written by jaxmps {a.get('jaxmps_version')})")
-    print(f"  scene    {a.get('scene')}  (dim {a.get('dim')}, spacing {a.get('spacing'):g} m, "
-          f"dt {a.get('dt'):.4g} s)")
+    print(
+        f"{data.path}: jaxmps run file (format_version {a.get('format_version')}, "
+        f"written by jaxmps {a.get('jaxmps_version')})"
+    )
+    print(
+        f"  scene    {a.get('scene')}  (dim {a.get('dim')}, "
+        f"spacing {a.get('spacing'):g} m, dt {a.get('dt'):.4g} s)"
+    )
     kind = data.particles["kind"]
     counts = ", ".join(
         f"{name} {int((kind == k).sum())}"
-        for k, name in enumerate(["fluid", "wall", "dummy", "rigid", "elastic", "sediment"])
+        for k, name in enumerate(
+            ["fluid", "wall", "dummy", "rigid", "elastic", "sediment"]
+        )
         if (kind == k).any()
     )
     print(f"  particles {len(kind)} ({counts})")
     times = data.frames.get("time")
     if times is not None and len(times):
-        print(f"  frames   {len(times)}, t = {times[0]:.4g} ... {times[-1]:.4g} s, "
-              f"steps {int(data.frames['step'][0])} ... {int(data.frames['step'][-1])}")
+        print(
+            f"  frames   {len(times)}, t = {times[0]:.4g} ... {times[-1]:.4g} s, "
+            f"steps {int(data.frames['step'][0])} ... {int(data.frames['step'][-1])}"
+        )
     else:
         print("  frames   0")
     names = [k for k in data.probes if k != "time"]
-    print(f"  probes   {len(data.probes.get('time', []))} rows: {', '.join(names) or '-'}")
+    print(
+        f"  probes   {len(data.probes.get('time', []))} rows: {', '.join(names) or '-'}"
+    )
     if data.state:
         from ._result import Result
         from .io._hdf5 import result_from_value
 
         value = int(data.state["result"])
         status = "successful" if value == 0 else Result[result_from_value(value)]
-        print(f"  state    t = {float(data.state['time']):.4g} s, step "
-              f"{int(data.state['step'])}, result: {status}")
+        print(
+            f"  state    t = {float(data.state['time']):.4g} s, step "
+            f"{int(data.state['step'])}, result: {status}"
+        )
     print(f"  config   {json.dumps(data.config, sort_keys=True)}")
     return 0
 
@@ -160,7 +175,11 @@ def _cmd_plot(args) -> int:
     if times is None or not len(times):
         print(f"jaxmps plot: error: '{args.file}' holds no frames.", file=sys.stderr)
         return 2
-    index = len(times) - 1 if args.time is None else int(np.argmin(np.abs(times - args.time)))
+    index = (
+        len(times) - 1
+        if args.time is None
+        else int(np.argmin(np.abs(times - args.time)))
+    )
     position = data.frames["position"][index]
     pressure = data.frames["pressure"][index]
     active = data.frames["active"][index]
@@ -171,8 +190,12 @@ def _cmd_plot(args) -> int:
     size = max(1.0, 4000.0 / max(1, len(position)))
     ax.scatter(position[solid, 0], position[solid, -1], s=size, c="0.6", lw=0)
     sc = ax.scatter(
-        position[fluid, 0], position[fluid, -1], s=size, c=pressure[fluid],
-        cmap="viridis", lw=0,
+        position[fluid, 0],
+        position[fluid, -1],
+        s=size,
+        c=pressure[fluid],
+        cmap="viridis",
+        lw=0,
     )
     fig.colorbar(sc, ax=ax, label="pressure [Pa]")
     ax.set_aspect("equal")
@@ -194,21 +217,35 @@ def _parser() -> argparse.ArgumentParser:
     sub.add_parser("scenes", help="list scenes and their parameters with defaults")
     p = sub.add_parser("run", help="run a scene and write RUN.h5 + RUN.xdmf")
     p.add_argument("scene", nargs="?", default="dam_break")
-    p.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
-                   help="override a scene parameter (repeatable)")
+    p.add_argument(
+        "--set",
+        action="append",
+        default=[],
+        metavar="NAME=VALUE",
+        help="override a scene parameter (repeatable)",
+    )
     p.add_argument("--t-end", type=float, default=None, help="simulated time [s]")
-    p.add_argument("--save-every", type=float, default=None,
-                   help="simulated time between saved frames [s]")
+    p.add_argument(
+        "--save-every",
+        type=float,
+        default=None,
+        help="simulated time between saved frames [s]",
+    )
     p.add_argument("--out", default=None, help="run file (default SCENE.h5)")
     p.add_argument("--x64", action="store_true", help="run in float64")
-    p.add_argument("--restart", action="store_true",
-                   help="continue the run in --out from its last state")
+    p.add_argument(
+        "--restart",
+        action="store_true",
+        help="continue the run in --out from its last state",
+    )
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p = sub.add_parser("info", help="what a run file holds")
     p.add_argument("file")
     p = sub.add_parser("plot", help="particle snapshot coloured by pressure")
     p.add_argument("file")
-    p.add_argument("--time", type=float, default=None, help="nearest frame (default last)")
+    p.add_argument(
+        "--time", type=float, default=None, help="nearest frame (default last)"
+    )
     p.add_argument("--out", default=None, help="PNG file (default RUN.png)")
     return parser
 

@@ -112,7 +112,9 @@ def _open_checked(path: str | os.PathLike, mode: str = "r") -> h5py.File:
             )
         for group in ("config", "particles", "frames", "probes"):
             if group not in f:
-                raise ValueError(f"'{path}' is a damaged run file: '/{group}' is missing.")
+                raise ValueError(
+                    f"'{path}' is a damaged run file: '/{group}' is missing."
+                )
     except Exception:
         f.close()
         raise
@@ -188,7 +190,9 @@ class RunWriter:
         f.create_dataset("config", data=config_json(case.config))
         particles = f.create_group("particles")
         n = position.shape[0]
-        particles.create_dataset("kind", data=np.asarray(case.state.kind).astype(np.int8))
+        particles.create_dataset(
+            "kind", data=np.asarray(case.state.kind).astype(np.int8)
+        )
         particles.create_dataset("body", data=np.full(n, -1, np.int32))
         f.create_group("frames")
         f.create_group("probes")
@@ -225,7 +229,9 @@ class RunWriter:
             "active": np.asarray(frame_batch.active).astype(bool),
         }
         if rows["position"].ndim == 2:  # a single frame
-            rows = {k: (v if k in ("time", "step") else v[None]) for k, v in rows.items()}
+            rows = {
+                k: (v if k in ("time", "step") else v[None]) for k, v in rows.items()
+            }
         frames = self.file["frames"]
         for name in FRAME_FIELDS:
             if name not in frames:
@@ -323,6 +329,11 @@ def write_xdmf(f: h5py.File, xdmf_path: str | os.PathLike, h5name: str) -> None:
         times = frames["time"][...]
         geometry = "XYZ" if d == 3 else "XY"
         kind = f["particles/kind"]
+        pressure, velocity = frames["pressure"], frames["velocity"]
+
+        def slab(name: str, ds: h5py.Dataset, i: int) -> str:
+            return _hyperslab(h5name, f"/frames/{name}", ds.shape, ds.dtype, i)
+
         for i in range(t):
             grids.append(
                 f'<Grid Name="frame_{i}" GridType="Uniform">'
@@ -330,13 +341,13 @@ def write_xdmf(f: h5py.File, xdmf_path: str | os.PathLike, h5name: str) -> None:
                 f'<Topology TopologyType="Polyvertex" NumberOfElements="{n}" '
                 f'NodesPerElement="1"/>'
                 f'<Geometry GeometryType="{geometry}">'
-                f"{_hyperslab(h5name, '/frames/position', pos.shape, pos.dtype, i)}"
+                f"{slab('position', pos, i)}"
                 f"</Geometry>"
                 f'<Attribute Name="Pressure" AttributeType="Scalar" Center="Node">'
-                f"{_hyperslab(h5name, '/frames/pressure', frames['pressure'].shape, frames['pressure'].dtype, i)}"
+                f"{slab('pressure', pressure, i)}"
                 f"</Attribute>"
                 f'<Attribute Name="Velocity" AttributeType="Vector" Center="Node">'
-                f"{_hyperslab(h5name, '/frames/velocity', frames['velocity'].shape, frames['velocity'].dtype, i)}"
+                f"{slab('velocity', velocity, i)}"
                 f"</Attribute>"
                 f'<Attribute Name="Kind" AttributeType="Scalar" Center="Node">'
                 f"{_data_item(h5name, '/particles/kind', kind.shape, kind.dtype)}"
