@@ -6,14 +6,14 @@ The everyday API is re-exported here; subpackages (`neighbours`, `operators`,
 
 from . import fluid as fluid
 from . import geometry as geometry
+from . import io as io
 from . import neighbours as neighbours
 from . import operators as operators
 from . import scenes as scenes
-from . import io as io
-from ._driver import run as run
 from ._build import make_params as make_params
 from ._build import make_scene as make_scene
 from ._build import make_state as make_state
+from ._driver import run as run
 from ._params import Params as Params
 from ._result import Result as Result
 from ._result import StepInfo as StepInfo

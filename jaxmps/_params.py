@@ -31,9 +31,10 @@ class Params(eqx.Module):
                 continue
             if not float(value) > 0:
                 raise ValueError(f"Params.{name} must be positive, got {float(value)}.")
-        if not isinstance(self.viscosity, jax.core.Tracer) and jnp.ndim(
-            self.viscosity
-        ) == 0:
+        if (
+            not isinstance(self.viscosity, jax.core.Tracer)
+            and jnp.ndim(self.viscosity) == 0
+        ):
             if not float(self.viscosity) >= 0:
                 raise ValueError(
                     f"Params.viscosity must be >= 0, got {float(self.viscosity)}."

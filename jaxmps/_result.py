@@ -41,9 +41,7 @@ class Result(eqx.Enumeration):
     )
 
 
-def update_result(
-    old: Result, pred: Bool[ArrayLike, ""], item: Result
-) -> Result:
+def update_result(old: Result, pred: Bool[ArrayLike, ""], item: Result) -> Result:
     """Return `item` if `pred` holds and nothing failed before, else `old`."""
     return Result.where(jnp.logical_and(pred, old == Result.successful), item, old)
 

@@ -77,8 +77,9 @@ def simulate(
         save_every: steps between observations (default: n_steps, one save at the end).
         observe: `(scene, state) -> PyTree` saved after every `save_every` steps. Pass a
             module-level function (a new lambda per call recompiles). Default: `frame`.
-        throw: raise at the end if the rollout failed (neighbour overflow, pressure solve
-            not converged, non-finite state, particle left the domain, step too large).
+        throw: raise at the end if the rollout failed (neighbour overflow, pressure
+            solve not converged, non-finite state, particle left the domain, step too
+            large).
             Errors are only reliably raised on CPU; on GPU they may only be printed.
             Under `vmap`, an error is raised if any batch member fails: prefer
             `throw=False` and inspect `Trajectory.result`.

@@ -10,7 +10,9 @@ import jaxmps
 
 def _setup():
     scene, params, state = small_tank(
-        width=0.06, depth=0.06, solver=jaxmps.SemiImplicit(rtol=1e-13, max_iterations=5000)
+        width=0.06,
+        depth=0.06,
+        solver=jaxmps.SemiImplicit(rtol=1e-13, max_iterations=5000),
     )
     params = eqx.tree_at(lambda p: p.viscosity, params, jnp.asarray(1e-2))
     # A small initial motion so that the rollout is not trivially at rest.
@@ -35,8 +37,10 @@ def test_rollout_gradient_matches_central_differences(field):
     x0 = getattr(params, field)
     g = jax.grad(_loss)(x0, field, scene, params, state)
     h = 1e-4 * x0
-    fd = (_loss(x0 + h, field, scene, params, state)
-          - _loss(x0 - h, field, scene, params, state)) / (2 * h)
+    fd = (
+        _loss(x0 + h, field, scene, params, state)
+        - _loss(x0 - h, field, scene, params, state)
+    ) / (2 * h)
     assert np.isfinite(g) and abs(float(fd)) > 0
     assert float(g) == pytest.approx(float(fd), rel=1e-4)
 
@@ -44,10 +48,14 @@ def test_rollout_gradient_matches_central_differences(field):
 def test_gradients_finite_with_padding_and_coincident_particles():
     scene, params, state = small_tank(capacity=None)
     # Put two fluid particles on top of each other.
-    state = eqx.tree_at(lambda s: s.position, state, state.position.at[1].set(state.position[0]))
+    state = eqx.tree_at(
+        lambda s: s.position, state, state.position.at[1].set(state.position[0])
+    )
 
     def loss(nu):
         p = eqx.tree_at(lambda p: p.viscosity, params, nu)
-        return jnp.sum(jaxmps.simulate(scene, p, state, 2, 2, throw=False).state.position)
+        return jnp.sum(
+            jaxmps.simulate(scene, p, state, 2, 2, throw=False).state.position
+        )
 
     assert np.isfinite(jax.grad(loss)(jnp.asarray(1e-3)))

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 from helpers import brute_force_neighbours, listed
 
-from jaxmps.neighbours import build, Grid
+from jaxmps.neighbours import Grid, build
 
 
 @pytest.mark.parametrize("dim", [2, 3])
@@ -13,8 +13,9 @@ def test_matches_brute_force_random_order_with_inactive(rng, dim):
     x = rng.uniform(0.0, 1.0, (n, dim))
     active = rng.uniform(size=n) > 0.2
     radius = 0.15 if dim == 2 else 0.25
-    grid = Grid(origin=(0.0,) * dim, cell_size=radius, shape=(7,) * dim,
-                cell_capacity=60)
+    grid = Grid(
+        origin=(0.0,) * dim, cell_size=radius, shape=(7,) * dim, cell_capacity=60
+    )
     nbrs = jax.jit(build, static_argnums=(0, 3, 4))(
         grid, jnp.asarray(x), jnp.asarray(active), 120, radius
     )
@@ -44,8 +45,9 @@ def test_deliberate_overflows():
     x, active = jnp.asarray(x), jnp.ones(15, bool)
 
     def grid(capacity):
-        return Grid(origin=(0.0, 0.0), cell_size=0.1, shape=(10, 10),
-                    cell_capacity=capacity)
+        return Grid(
+            origin=(0.0, 0.0), cell_size=0.1, shape=(10, 10), cell_capacity=capacity
+        )
 
     too_few_slots = build(grid(12), x, active, 5, 0.1)
     assert bool(too_few_slots.neighbour_overflow)

@@ -8,12 +8,12 @@ from jaxmps.geometry import block
 from jaxmps.neighbours import build
 from jaxmps.operators import (
     CorrectedGradient,
+    MPSWeight,
+    StandardGradient,
     laplacian,
     make_pairs,
-    MPSWeight,
     number_density,
     reference_constants,
-    StandardGradient,
 )
 
 
@@ -47,8 +47,13 @@ def _lattice(dim, l0=1.0, size=9, jitter=0.0, rng=None):
     if jitter:
         x = x + rng.uniform(-jitter, jitter, x.shape) * l0
     scene = jaxmps.make_scene(x, l0, (np.full(dim, -3.0), np.full(dim, size + 3.0)))
-    nbrs = build(scene.grid, jnp.asarray(x), jnp.ones(len(x), bool),
-                 scene.max_neighbours, scene.r_e)
+    nbrs = build(
+        scene.grid,
+        jnp.asarray(x),
+        jnp.ones(len(x), bool),
+        scene.max_neighbours,
+        scene.r_e,
+    )
     pairs = make_pairs(nbrs.index, jnp.asarray(x), scene.weight, scene.r_e)
     interior = np.all((x > 3.0) & (x < size - 3.0), axis=1)
     return scene, x, pairs, interior
@@ -69,8 +74,9 @@ def test_gradients_exact_on_linear_field_on_lattice(dim):
     include = pairs.valid
     for grad in (StandardGradient(), CorrectedGradient()):
         g = np.asarray(grad(pairs, phi, scene.n0, dim, include))
-        np.testing.assert_allclose(g[interior], np.tile(a, (interior.sum(), 1)),
-                                   rtol=1e-10)
+        np.testing.assert_allclose(
+            g[interior], np.tile(a, (interior.sum(), 1)), rtol=1e-10
+        )
 
 
 def test_corrected_gradient_exact_on_irregular_cloud(rng):
@@ -78,8 +84,7 @@ def test_corrected_gradient_exact_on_irregular_cloud(rng):
     a = np.array([1.3, -0.4])
     phi = jnp.asarray(x @ a)
     g = np.asarray(CorrectedGradient()(pairs, phi, scene.n0, 2, pairs.valid))
-    np.testing.assert_allclose(g[interior], np.tile(a, (interior.sum(), 1)),
-                               rtol=1e-10)
+    np.testing.assert_allclose(g[interior], np.tile(a, (interior.sum(), 1)), rtol=1e-10)
     # The standard gradient is not exact there (so the test above can fail).
     s = np.asarray(StandardGradient()(pairs, phi, scene.n0, 2, pairs.valid))
     assert np.abs(s[interior] - a).max() > 1e-3
@@ -90,9 +95,16 @@ def test_laplacian_of_r_squared_on_lattice(dim):
     l0 = 0.01
     scene, x, pairs, interior = _lattice(dim, size=9 if dim == 2 else 8)
     # rescale to l0 = 0.01 to check the units of lambda
-    scene2 = jaxmps.make_scene(x * l0, l0, (np.full(dim, -3 * l0), np.full(dim, 12 * l0)))
-    nbrs = build(scene2.grid, jnp.asarray(x * l0), jnp.ones(len(x), bool),
-                 scene2.max_neighbours, scene2.r_e)
+    scene2 = jaxmps.make_scene(
+        x * l0, l0, (np.full(dim, -3 * l0), np.full(dim, 12 * l0))
+    )
+    nbrs = build(
+        scene2.grid,
+        jnp.asarray(x * l0),
+        jnp.ones(len(x), bool),
+        scene2.max_neighbours,
+        scene2.r_e,
+    )
     p2 = make_pairs(nbrs.index, jnp.asarray(x * l0), scene2.weight, scene2.r_e)
     phi = jnp.asarray(np.sum((x * l0) ** 2, axis=1))
     lap = np.asarray(laplacian(p2, phi, scene2.n0, scene2.lam, dim))

@@ -27,7 +27,9 @@ def test_vmap_over_params_equals_loop():
     viscosities = jnp.array([1e-6, 1e-3, 1e-2])
     batch = eqx.tree_at(lambda p: p.viscosity, params, viscosities)
     axes = eqx.tree_at(
-        lambda p: p.viscosity, jax.tree.map(lambda _: None, params), 0,
+        lambda p: p.viscosity,
+        jax.tree.map(lambda _: None, params),
+        0,
         is_leaf=lambda x: x is None,
     )
 
@@ -100,7 +102,9 @@ def test_time_step_beyond_courant_limit_is_reported():
 
 def test_particle_leaving_domain_is_reported():
     scene, params, state = small_tank()
-    out = eqx.tree_at(lambda s: s.position, state, state.position.at[0].set(jnp.array([5.0, 5.0])))
+    out = eqx.tree_at(
+        lambda s: s.position, state, state.position.at[0].set(jnp.array([5.0, 5.0]))
+    )
     tr = jaxmps.simulate(scene, params, out, 1, 1, throw=False)
     assert tr.result == jaxmps.Result.left_domain
 

@@ -11,8 +11,11 @@ DATA = pathlib.Path(__file__).parent / "data"
 
 
 def _series(name, series):
-    rows = [line.split(",") for line in (DATA / name).read_text().splitlines()
-            if line and not line.startswith("#")][1:]
+    rows = [
+        line.split(",")
+        for line in (DATA / name).read_text().splitlines()
+        if line and not line.startswith("#")
+    ][1:]
     pts = [(float(r[-2]), float(r[-1])) for r in rows if r[0] == series]
     t, z = np.array(pts).T
     return t, z

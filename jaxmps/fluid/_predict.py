@@ -1,4 +1,4 @@
-"""Explicit prediction: viscosity, gravity and the collision guard (seed 000 eq. 2.2-3/4)."""
+"""Explicit prediction: viscosity, gravity, collision guard (seed 000 eq. 2.2-3/4)."""
 
 import jax.numpy as jnp
 from jaxtyping import Array, Bool, Float
@@ -54,4 +54,3 @@ def collide(
 
 def is_mobile(kind, active) -> Bool[Array, " n"]:
     return jnp.logical_and(active, is_kind(kind, MOBILE_KINDS))
-

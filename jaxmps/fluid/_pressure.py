@@ -1,4 +1,4 @@
-"""Pressure Poisson equation of the semi-implicit step (seed 000 eq. 2.2-14/15, §2.4.2)."""
+"""Pressure Poisson equation of the semi-implicit step (seed 000 eq. 2.2-14/15)."""
 
 import jax.numpy as jnp
 from jaxtyping import Array, Bool, Float
@@ -26,7 +26,9 @@ def pressure_system(
     """
     carries = jnp.logical_and(active, is_kind(kind, PRESSURE_KINDS))
     in_system = jnp.logical_and(carries, ~surface)
-    coupling = jnp.where(pairs.valid & take_rows(carries, pairs.index), pairs.weight, 0.0)
+    coupling = jnp.where(
+        pairs.valid & take_rows(carries, pairs.index), pairs.weight, 0.0
+    )
     diag = jnp.sum(coupling, axis=1)
     neighbour_in_system = take_rows(in_system, pairs.index)
     off = jnp.where(neighbour_in_system, coupling, 0.0)

@@ -86,7 +86,9 @@ class SemiImplicit(AbstractSolver):
             self.collision_distance * scene.spacing,
             self.collision_restitution,
         )
-        x_star = jnp.where(mobile[:, None], state.position + dt * u_star, state.position)
+        x_star = jnp.where(
+            mobile[:, None], state.position + dt * u_star, state.position
+        )
 
         # 2. Tentative number density and free surface at r* (eq. 2.2-6, 2.4-1).
         nbrs = neighbours.build(
@@ -121,7 +123,13 @@ class SemiImplicit(AbstractSolver):
 
         # 4. Correction (eq. 2.2-8/9/10), pressure gradient at r*.
         grad_p = pressure_gradient(
-            scene.gradient, pairs, pressure, state.kind, state.active, scene.n0, scene.dim
+            scene.gradient,
+            pairs,
+            pressure,
+            state.kind,
+            state.active,
+            scene.n0,
+            scene.dim,
         )
         u_prime = jnp.where(mobile[:, None], -(dt / params.density) * grad_p, 0.0)
         new_state = State(

@@ -61,6 +61,7 @@ class MixedSource(AbstractSource):
         du = take_rows(u_star, pairs.index) - u_star[:, None, :]
         radial = jnp.sum(du * pairs.offset, axis=-1) / pairs.distance**2
         divergence = (dim / n0) * jnp.sum(radial * pairs.weight, axis=1)
-        return density / dt * divergence + self.gamma * density / dt**2 * (
-            n0 - n_star
-        ) / n0
+        return (
+            density / dt * divergence
+            + self.gamma * density / dt**2 * (n0 - n_star) / n0
+        )

@@ -25,8 +25,8 @@ def block(lower, upper, spacing: float) -> np.ndarray:
 
 
 def layers_for(r_e_over_l0: float) -> int:
-    """Number of boundary layers (pressure wall + dummy) that give a wall particle a full
-    neighbourhood: ceil(r_e / l0). Three for r_e = 2.1 l0 (seed 000 §2.10)."""
+    """Number of boundary layers (pressure wall + dummy) giving a wall particle a
+    full neighbourhood: ceil(r_e / l0). Three for r_e = 2.1 l0 (seed 000 §2.10)."""
     return int(np.ceil(r_e_over_l0 - 1e-9))
 
 
@@ -66,7 +66,9 @@ def tank(
     return pts[keep], kinds.astype(np.int32)
 
 
-def remove_overlaps(points: np.ndarray, others: np.ndarray, spacing: float) -> np.ndarray:
+def remove_overlaps(
+    points: np.ndarray, others: np.ndarray, spacing: float
+) -> np.ndarray:
     """Drop points closer than spacing/2 to any point of `others` (host, O(n m))."""
     if len(points) == 0 or len(others) == 0:
         return points

@@ -1,4 +1,4 @@
-"""MPS gradient models: standard (eq. 2.1-5) and corrected (Iribe & Nakaza, eq. 2.3-9)."""
+"""MPS gradients: standard (eq. 2.1-5), corrected (Iribe & Nakaza, eq. 2.3-9)."""
 
 import abc
 

@@ -9,9 +9,9 @@ from ._hydrostatic import hydrostatic as hydrostatic
 from ._probes import AbstractProbe as AbstractProbe
 from ._probes import FluidPressureNear as FluidPressureNear
 from ._probes import FrontPosition as FrontPosition
-from ._probes import observe_probes as observe_probes
 from ._probes import PressureAt as PressureAt
 from ._probes import WaterLevel as WaterLevel
+from ._probes import observe_probes as observe_probes
 
 _REGISTRY = {
     "dam_break": (dam_break, _DAM_BREAK),

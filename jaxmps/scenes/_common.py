@@ -73,7 +73,7 @@ def tank_case(
     tank_upper,
     velocity_scale: float,
 ):
-    """Fluid block in an open tank of walls + dummies: (scene, params, state, extras)."""
+    """Fluid block in an open tank of walls and dummies: scene, params, state, extra."""
     l0 = config["spacing"]
     layers = geometry.layers_for(2.1)
     fluid = geometry.block(fluid_lower, fluid_upper, l0)

@@ -46,8 +46,12 @@ def dam_break(**overrides) -> Case:
     )
     n_fluid = int(state.active.sum()) - len(extra["walls"])
     mid = [0.5 * across[0]] if dim == 3 else []
-    right = nearest_wall(extra["walls"], extra["wall_kind"], [length + 0.5 * l0] + mid + [1.5 * l0])
-    left = nearest_wall(extra["walls"], extra["wall_kind"], [-0.5 * l0] + mid + [1.5 * l0])
+    right = nearest_wall(
+        extra["walls"], extra["wall_kind"], [length + 0.5 * l0] + mid + [1.5 * l0]
+    )
+    left = nearest_wall(
+        extra["walls"], extra["wall_kind"], [-0.5 * l0] + mid + [1.5 * l0]
+    )
     probes = (
         FrontPosition("front", 0.0, 0.0, 2 * l0, l0, int(round(length / l0)) // 2 + 1),
         WaterLevel("column_height", 0.5 * l0, 0.0, l0),
@@ -55,8 +59,13 @@ def dam_break(**overrides) -> Case:
         PressureAt("pressure_right_wall", tuple(n_fluid + i for i in right)),
         PressureAt("pressure_left_wall", tuple(n_fluid + i for i in left)),
     )
-    config = {**c, "column_width": a, "column_height": h, "tank_length": length,
-              "tank_height": height}
+    config = {
+        **c,
+        "column_width": a,
+        "column_height": h,
+        "tank_length": length,
+        "tank_height": height,
+    }
     return Case(
         name="dam_break",
         scene=scene,

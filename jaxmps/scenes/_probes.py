@@ -19,8 +19,6 @@ class AbstractProbe(eqx.Module):
         """The probe's value for this state."""
 
 
-
-
 class FrontPosition(AbstractProbe):
     """Surge-front position [m] from `x_start`: the fluid within `band` of the floor is
     binned into bins of width 2 l0 from `x_start`; the front is the largest x (plus
@@ -90,7 +88,10 @@ class FluidPressureNear(AbstractProbe):
     def __call__(self, scene, state):
         del scene
         fluid = jnp.logical_and(state.active, state.kind == int(Kind.FLUID))
-        d = state.position - jnp.asarray(self.point, dtype=state.position.dtype)[None, :]
+        d = (
+            state.position
+            - jnp.asarray(self.point, dtype=state.position.dtype)[None, :]
+        )
         near = fluid & (jnp.sum(d * d, axis=-1) < self.radius**2)
         count = jnp.sum(near)
         total = jnp.sum(jnp.where(near, state.pressure, 0.0))
@@ -110,5 +111,3 @@ class _ProbeObserver(eqx.Module):
         for probe in self.probes:
             out[probe.name] = probe(scene, state)
         return out
-
-
