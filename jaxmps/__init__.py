@@ -25,6 +25,7 @@ from ._simulate import simulate as simulate
 from ._state import State as State
 from ._step import step as step
 from ._types import Kind as Kind
+from .fluid import Explicit as Explicit
 from .fluid import SemiImplicit as SemiImplicit
 from .operators import CorrectedGradient as CorrectedGradient
 from .operators import MPSWeight as MPSWeight

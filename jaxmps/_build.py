@@ -113,6 +113,7 @@ def make_params(
     viscosity: float = 1.0e-6,
     gravity: float = 9.81,
     beta: float = 0.97,
+    sound_speed: float = 10.0,
     dtype=None,
 ) -> Params:
     """Params with gravity `gravity` [m/s^2] pointing down the last axis.
@@ -128,6 +129,7 @@ def make_params(
         gravity=jnp.asarray(g, dtype),
         dt=jnp.asarray(dt, dtype),
         beta=jnp.asarray(beta, dtype),
+        sound_speed=jnp.asarray(sound_speed, dtype),
     )
 
 

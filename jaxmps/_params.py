@@ -15,6 +15,8 @@ class Params(eqx.Module):
         gravity: gravitational acceleration vector [m/s^2], shape (d,).
         dt: time step [s].
         beta: free-surface threshold; a particle with n* < beta * n0 is on the surface.
+        sound_speed: artificial speed of sound c [m/s] of the explicit (E-MPS) equation
+            of state; unused by the semi-implicit solver.
     """
 
     density: Float[Array, ""] = eqx.field(converter=jnp.asarray)
@@ -22,10 +24,11 @@ class Params(eqx.Module):
     gravity: Float[Array, " d"] = eqx.field(converter=jnp.asarray)
     dt: Float[Array, ""] = eqx.field(converter=jnp.asarray)
     beta: Float[Array, ""] = eqx.field(converter=jnp.asarray)
+    sound_speed: Float[Array, ""] = eqx.field(converter=jnp.asarray)
 
     def __check_init__(self):
         # Only concrete scalars can be checked; traced or batched values pass through.
-        for name in ("density", "dt", "beta"):
+        for name in ("density", "dt", "beta", "sound_speed"):
             value = getattr(self, name)
             if isinstance(value, jax.core.Tracer) or jnp.ndim(value) != 0:
                 continue

@@ -36,8 +36,9 @@ class Result(eqx.Enumeration):
         "`domain_margin=...`) or find why it escaped (splash over a wall, instability)."
     )
     step_too_large = (
-        "The Courant number max|u| dt / l0 exceeded `Scene.courant_limit`: the time "
-        "step is beyond the stability limit. Reduce `dt` (scene override `dt=...`)."
+        "The time step is beyond a stability limit: the Courant number max|u| dt / l0 "
+        "exceeded `Scene.courant_limit`, or (explicit solver) c dt / l0 exceeded "
+        "`Explicit.sound_courant`. Reduce `dt` (scene override `dt=...`)."
     )
 
 
@@ -56,3 +57,4 @@ class StepInfo(eqx.Module):
     cell_overflow: Bool[Array, ""]
     outside: Bool[Array, ""]
     surface_count: Int[Array, ""]
+    unstable: Bool[Array, ""]  # a solver-specific stability limit was exceeded

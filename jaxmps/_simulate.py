@@ -50,7 +50,6 @@ class Trajectory(eqx.Module):
     result: Result
 
 
-@eqx.filter_jit
 def simulate(
     scene: Scene,
     params: Params,
@@ -92,12 +91,29 @@ def simulate(
         ValueError: at trace time, for inconsistent arguments.
         EquinoxRuntimeError: at run time with `throw=True`, with the failure's message.
     """
+    # Checks run here, in Python and before tracing, so that concrete Params (dt,
+    # sound speed, ...) can be refused with a ValueError; inside a user's own jit
+    # they are tracers and only the run-time result codes apply.
     check_compatible(scene, params, state)
     save_every = n_steps if save_every is None else save_every
     if save_every < 1 or n_steps < 1 or n_steps % save_every:
         raise ValueError(
             f"n_steps={n_steps} must be a positive multiple of save_every={save_every}."
         )
+    return _simulate(
+        scene,
+        params,
+        state,
+        n_steps,
+        save_every,
+        observe,
+        throw=throw,
+        checkpoint=checkpoint,
+    )
+
+
+@eqx.filter_jit
+def _simulate(scene, params, state, n_steps, save_every, observe, *, throw, checkpoint):
 
     def one_step(carry: State, _):
         carry, _ = _step(scene, params, carry)

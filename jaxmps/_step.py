@@ -19,6 +19,7 @@ def check_compatible(scene: Scene, params: Params, state: State) -> None:
             f"State holds {n} particles in {d}-D but the Scene expects "
             f"{scene.capacity} in {scene.dim}-D; build both from the same case."
         )
+    scene.solver.check_params(scene, params)
     if params.gravity.shape[-1] != scene.dim:
         raise ValueError(
             f"Params.gravity has {params.gravity.shape[-1]} components; the Scene is "
@@ -51,7 +52,9 @@ def _step(scene: Scene, params: Params, state: State) -> tuple[State, StepInfo]:
         )
         result = update_result(result, info.outside, Result.left_domain)
         result = update_result(
-            result, courant > scene.courant_limit, Result.step_too_large
+            result,
+            (courant > scene.courant_limit) | info.unstable,
+            Result.step_too_large,
         )
         result = update_result(
             result, ~info.pressure_converged, Result.pressure_not_converged
@@ -60,7 +63,6 @@ def _step(scene: Scene, params: Params, state: State) -> tuple[State, StepInfo]:
     return eqx.tree_at(lambda s: s.result, new, result), info
 
 
-@eqx.filter_jit
 def step(scene: Scene, params: Params, state: State) -> tuple[State, StepInfo]:
     """Advance `state` by one time step `params.dt`.
 
@@ -71,4 +73,7 @@ def step(scene: Scene, params: Params, state: State) -> tuple[State, StepInfo]:
         The new state and this step's diagnostics.
     """
     check_compatible(scene, params, state)
-    return _step(scene, params, state)
+    return _jit_step(scene, params, state)
+
+
+_jit_step = eqx.filter_jit(_step)

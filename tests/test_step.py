@@ -122,7 +122,7 @@ def test_bad_inputs_raise_clear_errors():
     with pytest.raises(ValueError, match="Valid parameters"):
         jaxmps.scenes.dam_break(colum_width=0.1)
     with pytest.raises(ValueError, match="solver"):
-        jaxmps.scenes.dam_break(solver="explicit")
+        jaxmps.scenes.dam_break(solver="implicit")
     with pytest.raises(ValueError, match="dt"):
         jaxmps.make_params(2, dt=-1.0)
     scene, params, state = small_tank()

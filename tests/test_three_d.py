@@ -28,7 +28,10 @@ def test_hydrostatic_3d_bottom_pressure():
 
 def _front(dim):
     case = jaxmps.scenes.dam_break(
-        dim=dim, spacing=0.0146, tank_length=0.438, tank_height=0.3504,
+        dim=dim,
+        spacing=0.0146,
+        tank_length=0.438,
+        tank_height=0.3504,
         tank_width=0.0438,
     )
     obs = jaxmps.scenes.observe_probes(case.probes)

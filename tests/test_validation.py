@@ -53,8 +53,9 @@ def test_dam_break_front_matches_sola_vof(front):
     column): within 5 % at T = 1, 1.5, 2, 2.5 (measured: within 2 %). Both run ahead of
     the experiments (instantaneous release, inviscid), see REFERENCE.md §1."""
     t, z = front
-    vof_t, vof_z = _series("koshizuka_oka_1996_surge_front.csv",
-                           "openmps_vof_hirt_nichols1981")
+    vof_t, vof_z = _series(
+        "koshizuka_oka_1996_surge_front.csv", "openmps_vof_hirt_nichols1981"
+    )
     for T in (1.0, 1.5, 2.0, 2.5):
         rel = np.interp(T, t, z) / np.interp(T, vof_t, vof_z) - 1
         assert abs(rel) <= 0.05, (T, rel)

@@ -14,3 +14,4 @@ from ._source import DensitySource as DensitySource
 from ._source import MixedSource as MixedSource
 from ._surface import FreeSurface as FreeSurface
 from ._surface import detect_surface as detect_surface
+from ._explicit import Explicit as Explicit

@@ -24,6 +24,14 @@ class AbstractSolver(eqx.Module):
     def advance(self, scene, params: Params, state: State) -> tuple[State, StepInfo]:
         """Advance fluid (and body-as-fluid) particles by `params.dt`."""
 
+    def check_params(self, scene, params: Params) -> None:
+        """Refuse, before any tracing, Params this solver cannot run (ValueError).
+
+        Only concrete values are checked; traced ones (inside jit or vmap) are left
+        to the run-time result codes.
+        """
+        del scene, params
+
 
 class SemiImplicit(AbstractSolver):
     """Semi-implicit MPS: explicit viscosity and gravity, implicit pressure.
@@ -150,5 +158,6 @@ class SemiImplicit(AbstractSolver):
             cell_overflow=nbrs_k.cell_overflow | nbrs.cell_overflow,
             outside=jnp.any(nbrs_k.outside) | jnp.any(nbrs.outside),
             surface_count=jnp.sum(surface, dtype=jnp.int32),
+            unstable=jnp.asarray(False),
         )
         return new_state, info

@@ -9,6 +9,8 @@ from ._laplacian import laplacian as laplacian
 from ._pairs import Pairs as Pairs
 from ._pairs import make_pairs as make_pairs
 from ._weight import AbstractWeight as AbstractWeight
+from ._weight import EMPSGradientWeight as EMPSGradientWeight
+from ._weight import EMPSWeight as EMPSWeight
 from ._weight import MPSWeight as MPSWeight
 from ._weight import lattice_offsets as lattice_offsets
 from ._weight import reference_constants as reference_constants

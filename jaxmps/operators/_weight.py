@@ -36,6 +36,21 @@ class MPSWeight(AbstractWeight):
         return r_e / r - 1.0
 
 
+class EMPSWeight(AbstractWeight):
+    """E-MPS weight of number density, Laplacian and divergence (Yamada et al. 2011;
+    seed 002 eq. 3.5): w(r) = r_e/r + r/r_e - 2, zero value at r = r_e."""
+
+    def value(self, r, r_e):
+        return r_e / r + r / r_e - 2.0
+
+
+class EMPSGradientWeight(AbstractWeight):
+    """E-MPS weight of the pressure gradient (seed 002 eq. 3.6): r_e/r - r/r_e."""
+
+    def value(self, r, r_e):
+        return r_e / r - r / r_e
+
+
 def lattice_offsets(dim: int, r_e: float) -> np.ndarray:
     """Offsets of a unit square/cubic lattice point's neighbours with 0 < |x| < r_e
     (in units of the spacing)."""

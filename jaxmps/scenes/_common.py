@@ -8,7 +8,8 @@ import numpy as np
 from .. import geometry
 from .._build import make_params, make_scene, make_state
 from .._types import Kind
-from ..fluid import SemiImplicit
+from ..fluid import Explicit, SemiImplicit
+from ..operators import EMPSWeight, MPSWeight
 
 # Overrides every scene accepts, with their defaults (None: scene-specific).
 COMMON = {
@@ -19,6 +20,7 @@ COMMON = {
     "density": 1000.0,
     "gravity": 9.81,
     "beta": 0.97,
+    "sound_speed": 10.0,
     "rtol": None,
     "max_iterations": 2000,
     "max_neighbours": None,
@@ -27,7 +29,7 @@ COMMON = {
     "domain_margin": None,
 }
 
-SOLVERS = ("semi_implicit",)
+SOLVERS = ("semi_implicit", "explicit")
 SCHEMES = ("standard",)
 
 
@@ -43,8 +45,7 @@ def resolve(name: str, specific: dict[str, Any], overrides: dict[str, Any]) -> d
     config = {**defaults, **overrides}
     if config["solver"] not in SOLVERS:
         raise ValueError(
-            f"solver={config['solver']!r} is not available; valid: {SOLVERS} "
-            "(the explicit solver is planned)."
+            f"solver={config['solver']!r} is not available; valid: {SOLVERS}."
         )
     if config["scheme"] not in SCHEMES:
         raise ValueError(
@@ -59,10 +60,25 @@ def resolve(name: str, specific: dict[str, Any], overrides: dict[str, Any]) -> d
 
 
 def default_dt(config: dict, velocity_scale: float) -> float:
-    """dt = courant * l0 / U for the scene's velocity scale U (if dt not given)."""
+    """dt = courant * l0 / U for the scene's velocity scale U (if dt not given); for
+    the explicit solver also at most 2 courant l0 / c (c dt / l0 = 0.4 by default, as
+    in seed 002)."""
     if config["dt"] is not None:
         return float(config["dt"])
-    return float(config["courant"] * config["spacing"] / velocity_scale)
+    dt = config["courant"] * config["spacing"] / velocity_scale
+    if config["solver"] == "explicit":
+        dt = min(dt, 2 * config["courant"] * config["spacing"] / config["sound_speed"])
+    return float(dt)
+
+
+def make_solver(config: dict):
+    """The solver strategy and the weight it uses, from the `solver` setting."""
+    if config["solver"] == "explicit":
+        return Explicit(), EMPSWeight()
+    solver = SemiImplicit(
+        rtol=config["rtol"], max_iterations=int(config["max_iterations"])
+    )
+    return solver, MPSWeight()
 
 
 def tank_case(
@@ -86,14 +102,13 @@ def tank_case(
     lower = np.asarray(tank_lower, float) - layers * l0 - 2 * l0
     upper = np.asarray(tank_upper, float) + layers * l0 + 2 * l0
     upper[-1] = tank_upper[-1] + margin
-    solver = SemiImplicit(
-        rtol=config["rtol"], max_iterations=int(config["max_iterations"])
-    )
+    solver, weight = make_solver(config)
     scene = make_scene(
         position,
         l0,
         (lower, upper),
         solver=solver,
+        weight=weight,
         max_neighbours=config["max_neighbours"],
         cell_capacity=config["cell_capacity"],
     )
@@ -105,6 +120,7 @@ def tank_case(
         viscosity=config["viscosity"],
         gravity=config["gravity"],
         beta=config["beta"],
+        sound_speed=config["sound_speed"],
     )
     state = make_state(scene, position, kind)
     return scene, params, state, dict(walls=walls, wall_kind=wall_kind)

@@ -1,0 +1,136 @@
+"""The explicit, weakly compressible MPS step (E-MPS; Oochi et al. 2010; seed 002 §2)."""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from .. import neighbours
+from .._numerics import take_rows
+from .._result import StepInfo
+from .._state import State
+from .._types import is_kind, PRESSURE_KINDS
+from ..operators import (
+    AbstractWeight,
+    EMPSGradientWeight,
+    make_pairs,
+    number_density,
+    reference_constants,
+)
+from ._predict import is_mobile, predict_velocity
+from ._semi_implicit import AbstractSolver
+
+
+def _concrete(x) -> bool:
+    return not isinstance(x, jax.core.Tracer) and np.ndim(x) == 0
+
+
+class Explicit(AbstractSolver):
+    """E-MPS: pressure from the linear equation of state, no linear solve.
+
+    One step (seed 002 §2.6):
+        u* = u^k + dt (nu <lap u>^k + g),  r* = r^k + dt u*;
+        P_i = c^2 rho0/n0 (n*_i - n0) if n*_i > n0 else 0            (eq. 3.30/3.34);
+        <grad P>_i = d/n0_grad sum_j (P_j + P_i) r_ij/|r_ij|^2 w_grad  (eq. 3.33);
+        u^{k+1} = u* - dt/rho0 <grad P>,  r^{k+1} = r^k + dt u^{k+1}.
+    Use it with `EMPSWeight()` as the Scene's weight (n, Laplacian). The sound speed
+    c is `Params.sound_speed`.
+
+    Attributes:
+        gradient_weight: kernel of the pressure gradient (eq. 3.6).
+        sound_courant: largest c dt / l0 accepted (eq. 3.40: 1.0).
+        check_time_step: refuse a concrete dt with c dt / l0 > sound_courant when the
+            simulation starts (ValueError stating the limit). Set False to opt out;
+            the run-time check (`Result.step_too_large`) stays.
+    """
+
+    gradient_weight: AbstractWeight = EMPSGradientWeight()
+    sound_courant: float = 1.0
+    check_time_step: bool = True
+
+    def max_dt(self, scene, sound_speed: float) -> float:
+        """The sound-speed stability limit dt < sound_courant l0 / c [s]."""
+        return self.sound_courant * scene.spacing / float(sound_speed)
+
+    def check_params(self, scene, params):
+        if not self.check_time_step:
+            return
+        dt, c = params.dt, params.sound_speed
+        if _concrete(dt) and _concrete(c):
+            limit = self.max_dt(scene, float(c))
+            if float(dt) > limit:
+                raise ValueError(
+                    f"dt={float(dt):.4g} s exceeds the explicit (E-MPS) stability limit "
+                    f"dt < {self.sound_courant:g} l0 / c = {limit:.4g} s (l0="
+                    f"{scene.spacing:g} m, c={float(c):g} m/s). Reduce `dt`, or opt "
+                    "out with `Explicit(check_time_step=False)`."
+                )
+
+    def advance(self, scene, params, state):
+        dt = params.dt
+        mobile = is_mobile(state.kind, state.active)
+        nbrs_k = neighbours.build(
+            scene.grid, state.position, state.active, scene.max_neighbours, scene.r_e
+        )
+        pairs_k = make_pairs(nbrs_k.index, state.position, scene.weight, scene.r_e)
+        u_star = predict_velocity(
+            scene, params, state.velocity, state.kind, state.active, pairs_k
+        )
+        x_star = jnp.where(
+            mobile[:, None], state.position + dt * u_star, state.position
+        )
+
+        nbrs = neighbours.build(
+            scene.grid, x_star, state.active, scene.max_neighbours, scene.r_e
+        )
+        pairs = make_pairs(nbrs.index, x_star, scene.weight, scene.r_e)
+        n_star = number_density(pairs)
+        carries = jnp.logical_and(state.active, is_kind(state.kind, PRESSURE_KINDS))
+        # Free surface and spray: n* <= n0 gives P = 0 (threshold 1, eq. 3.34).
+        # Choice: wall particles get their pressure from the equation of state like
+        # fluid (seed 002 Ch. 3); the mirrored variant of Ch. 5 is not implemented.
+        compression = jnp.maximum(n_star - scene.n0, 0.0)
+        pressure = jnp.where(
+            carries,
+            params.sound_speed**2 * params.density / scene.n0 * compression,
+            0.0,
+        )
+
+        n0_grad, _ = reference_constants(
+            self.gradient_weight, scene.dim, scene.r_e / scene.spacing
+        )
+        w_grad = self.gradient_weight(pairs.distance, pairs.valid, scene.r_e)
+        # Choice: dummies only complete the number density (seed 002 §2.8); they
+        # carry no pressure and are left out of the gradient.
+        w_grad = jnp.where(take_rows(carries, pairs.index), w_grad, 0.0)
+        p_sum = take_rows(pressure, pairs.index) + pressure[:, None]
+        terms = (p_sum * w_grad / pairs.distance**2)[..., None] * pairs.offset
+        grad_p = (scene.dim / n0_grad) * jnp.sum(terms, axis=1)
+
+        u_new = jnp.where(
+            mobile[:, None], u_star - (dt / params.density) * grad_p, u_star
+        )
+        # Seed 002 eq. 3.46 prints r^{k+1} = r* + dt u^{k+1}, which counts dt u* twice;
+        # we use the original E-MPS update r^{k+1} = r^k + dt u^{k+1} (digest §2.6).
+        x_new = jnp.where(mobile[:, None], state.position + dt * u_new, state.position)
+        sound = params.sound_speed * dt / scene.spacing > self.sound_courant
+        new_state = State(
+            time=state.time + dt,
+            step=state.step + 1,
+            position=x_new,
+            velocity=u_new,
+            pressure=pressure,
+            kind=state.kind,
+            active=state.active,
+            result=state.result,
+        )
+        info = StepInfo(
+            pressure_iterations=jnp.asarray(0, jnp.int32),
+            pressure_residual=jnp.zeros((), dtype=x_new.dtype),
+            pressure_converged=jnp.asarray(True),
+            neighbour_overflow=nbrs_k.neighbour_overflow | nbrs.neighbour_overflow,
+            cell_overflow=nbrs_k.cell_overflow | nbrs.cell_overflow,
+            outside=jnp.any(nbrs_k.outside) | jnp.any(nbrs.outside),
+            surface_count=jnp.sum(carries & (n_star <= scene.n0), dtype=jnp.int32),
+            unstable=sound,
+        )
+        return new_state, info
