@@ -3,6 +3,7 @@
 from ._cg import SolveInfo as SolveInfo
 from ._cg import solve_spd as solve_spd
 from ._correct import pressure_gradient as pressure_gradient
+from ._explicit import Explicit as Explicit
 from ._predict import collide as collide
 from ._predict import predict_velocity as predict_velocity
 from ._pressure import pressure_system as pressure_system
@@ -14,4 +15,3 @@ from ._source import DensitySource as DensitySource
 from ._source import MixedSource as MixedSource
 from ._surface import FreeSurface as FreeSurface
 from ._surface import detect_surface as detect_surface
-from ._explicit import Explicit as Explicit

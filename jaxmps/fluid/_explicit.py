@@ -1,4 +1,4 @@
-"""The explicit, weakly compressible MPS step (E-MPS; Oochi et al. 2010; seed 002 §2)."""
+"""The explicit, weakly compressible MPS step (E-MPS, Oochi et al. 2010; seed 002)."""
 
 import jax
 import jax.numpy as jnp
@@ -8,7 +8,7 @@ from .. import neighbours
 from .._numerics import take_rows
 from .._result import StepInfo
 from .._state import State
-from .._types import is_kind, PRESSURE_KINDS
+from .._types import PRESSURE_KINDS, is_kind
 from ..operators import (
     AbstractWeight,
     EMPSGradientWeight,
@@ -59,7 +59,8 @@ class Explicit(AbstractSolver):
             limit = self.max_dt(scene, float(c))
             if float(dt) > limit:
                 raise ValueError(
-                    f"dt={float(dt):.4g} s exceeds the explicit (E-MPS) stability limit "
+                    f"dt={float(dt):.4g} s exceeds the explicit (E-MPS) stability "
+                    "limit "
                     f"dt < {self.sound_courant:g} l0 / c = {limit:.4g} s (l0="
                     f"{scene.spacing:g} m, c={float(c):g} m/s). Reduce `dt`, or opt "
                     "out with `Explicit(check_time_step=False)`."
