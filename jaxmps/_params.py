@@ -5,6 +5,8 @@ import jax
 import jax.numpy as jnp
 from jaxtyping import Array, Float
 
+from .fluid._open import InflowParams
+
 
 class Params(eqx.Module):
     """Physical coefficients. Float arrays only: changing a value never recompiles.
@@ -17,6 +19,7 @@ class Params(eqx.Module):
         beta: free-surface threshold; a particle with n* < beta * n0 is on the surface.
         sound_speed: artificial speed of sound c [m/s] of the explicit (E-MPS) equation
             of state; unused by the semi-implicit solver.
+        inflow: inflow parameters, present exactly when the Scene has an inflow.
     """
 
     density: Float[Array, ""] = eqx.field(converter=jnp.asarray)
@@ -25,6 +28,7 @@ class Params(eqx.Module):
     dt: Float[Array, ""] = eqx.field(converter=jnp.asarray)
     beta: Float[Array, ""] = eqx.field(converter=jnp.asarray)
     sound_speed: Float[Array, ""] = eqx.field(converter=jnp.asarray)
+    inflow: InflowParams | None = None
 
     def __check_init__(self):
         # Only concrete scalars can be checked; traced or batched values pass through.

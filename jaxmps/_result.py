@@ -35,6 +35,10 @@ class Result(eqx.Enumeration):
         "search, clamped to the boundary cells). Enlarge the domain (scene override "
         "`domain_margin=...`) or find why it escaped (splash over a wall, instability)."
     )
+    pool_exhausted = (
+        "The inflow needed more inactive particles than the pool holds. Raise the "
+        "capacity (scene override `pool=...`, or `make_scene(capacity=...)`)."
+    )
     step_too_large = (
         "The time step is beyond a stability limit: the Courant number max|u| dt / l0 "
         "exceeded `Scene.courant_limit`, or (explicit solver) c dt / l0 exceeded "

@@ -2,7 +2,7 @@
 
 import equinox as eqx
 
-from .fluid import AbstractSolver, SemiImplicit
+from .fluid import AbstractSolver, Inflow, Outflow, SemiImplicit
 from .neighbours import Grid
 from .operators import AbstractGradient, AbstractWeight, CorrectedGradient, MPSWeight
 
@@ -25,7 +25,9 @@ class Scene(eqx.Module):
         courant_limit: largest max|u| dt / l0 accepted before `Result.step_too_large`.
         weight: weight function of every operator.
         gradient: pressure-gradient model.
-        solver: how the fluid is advanced (`SemiImplicit()`).
+        solver: how the fluid is advanced (`SemiImplicit()` or `Explicit()`).
+        inflow: optional moving inflow boundary fed from the inactive pool.
+        outflow: optional outflow plane returning fluid to the pool.
     """
 
     dim: int
@@ -40,6 +42,8 @@ class Scene(eqx.Module):
     weight: AbstractWeight = MPSWeight()
     gradient: AbstractGradient = CorrectedGradient(minimum_shift=True)
     solver: AbstractSolver = SemiImplicit()
+    inflow: Inflow | None = None
+    outflow: Outflow | None = None
 
     def __check_init__(self):
         if self.dim not in (2, 3):

@@ -4,6 +4,7 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 
+from . import fluid
 from ._params import Params
 from ._result import Result, StepInfo, update_result
 from ._scene import Scene
@@ -20,6 +21,10 @@ def check_compatible(scene: Scene, params: Params, state: State) -> None:
             f"{scene.capacity} in {scene.dim}-D; build both from the same case."
         )
     scene.solver.check_params(scene, params)
+    if (scene.inflow is None) != (params.inflow is None):
+        raise ValueError(
+            "Scene.inflow and Params.inflow must both be set or both be None."
+        )
     if params.gravity.shape[-1] != scene.dim:
         raise ValueError(
             f"Params.gravity has {params.gravity.shape[-1]} components; the Scene is "
@@ -28,8 +33,17 @@ def check_compatible(scene: Scene, params: Params, state: State) -> None:
 
 
 def _step(scene: Scene, params: Params, state: State) -> tuple[State, StepInfo]:
+    pool_short = jnp.asarray(False)
+    if scene.inflow is not None:
+        with jax.named_scope("inflow"):
+            state, pool_short = fluid.apply_inflow(
+                scene, scene.inflow, params.inflow, params.dt, state
+            )
     with jax.named_scope("fluid"):
         new, info = scene.solver.advance(scene, params, state)
+    if scene.outflow is not None:
+        with jax.named_scope("outflow"):
+            new = fluid.apply_outflow(scene, scene.outflow, new)
     # Future components (rigid projection, elastic update, friction, DEM) slot in here,
     # each as `if scene.<component> is not None: new = <module>.<stage>(...)`.
     with jax.named_scope("result"):
@@ -50,6 +64,7 @@ def _step(scene: Scene, params: Params, state: State) -> tuple[State, StepInfo]:
         result = update_result(
             result, info.neighbour_overflow, Result.neighbour_overflow
         )
+        result = update_result(result, pool_short, Result.pool_exhausted)
         result = update_result(result, info.outside, Result.left_domain)
         result = update_result(
             result,

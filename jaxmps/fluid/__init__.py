@@ -4,6 +4,11 @@ from ._cg import SolveInfo as SolveInfo
 from ._cg import solve_spd as solve_spd
 from ._correct import pressure_gradient as pressure_gradient
 from ._explicit import Explicit as Explicit
+from ._open import Inflow as Inflow
+from ._open import InflowParams as InflowParams
+from ._open import Outflow as Outflow
+from ._open import apply_inflow as apply_inflow
+from ._open import apply_outflow as apply_outflow
 from ._predict import collide as collide
 from ._predict import predict_velocity as predict_velocity
 from ._pressure import pressure_system as pressure_system

@@ -4,6 +4,8 @@ from ._case import Case as Case
 from ._common import COMMON
 from ._dam_break import DEFAULTS as _DAM_BREAK
 from ._dam_break import dam_break as dam_break
+from ._flume import DEFAULTS as _FLUME
+from ._flume import flume as flume
 from ._hydrostatic import DEFAULTS as _HYDROSTATIC
 from ._hydrostatic import hydrostatic as hydrostatic
 from ._probes import AbstractProbe as AbstractProbe
@@ -15,6 +17,7 @@ from ._probes import observe_probes as observe_probes
 
 _REGISTRY = {
     "dam_break": (dam_break, _DAM_BREAK),
+    "flume": (flume, _FLUME),
     "hydrostatic": (hydrostatic, _HYDROSTATIC),
 }
 

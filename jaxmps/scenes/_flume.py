@@ -1,0 +1,174 @@
+"""Open-channel flume: inflow at unit discharge q, free overfall or tail weir, outflow."""
+
+import math
+
+import numpy as np
+
+from .. import geometry
+from .._build import make_params, make_scene, make_state
+from .._types import Kind
+from ..fluid import Inflow, InflowParams, Outflow
+from ._case import Case
+from ._common import default_dt, make_solver, resolve, whole
+from ._probes import AbstractProbe, WaterLevel
+
+DEFAULTS = {
+    "discharge": 0.04,  # unit discharge q [m^2/s] (seed 002 Ch. 4)
+    "inflow_depth": 0.045,  # h_in [m] (seed 002 Ch. 4: 4.5 cm on the weir crest)
+    "bed_length": 1.0,
+    "weir_height": 0.0,  # tail weir at the downstream end; 0 = free overfall
+    "initial_fill": True,  # start with the bed covered at h_in moving at q/h_in
+    "pool": None,  # inactive slots for the inflow (default: enough for t_end)
+    "spacing": 0.005,
+    "dim": 2,
+    "t_end": 2.0,
+}
+
+
+class FluidCount(AbstractProbe):
+    """Number of active fluid particles (mass in units of one particle)."""
+
+    name: str
+
+    def __call__(self, scene, state):
+        del scene
+        import jax.numpy as jnp
+
+        fluid = state.active & (state.kind == int(Kind.FLUID))
+        return jnp.sum(fluid).astype(state.position.dtype)
+
+
+def flume(**overrides) -> Case:
+    """2-D flume of `bed_length` fed by an inflow of depth `inflow_depth` at speed
+    `discharge / inflow_depth`; water leaves over the downstream end (deleted one
+    spacing past it) or over a tail weir of `weir_height`.
+
+    # Choice: seed 002's Ch. 4 inflow (q = 0.04 m^2/s, h_in = 4.5 cm, uniform
+    # velocity) on a flat 1 m bed; its step, crest and slope are not modelled here.
+    """
+    c = resolve("flume", DEFAULTS, overrides)
+    if int(c["dim"]) != 2:
+        raise ValueError("flume is 2-D only for now (dim=2).")
+    l0 = c["spacing"]
+    h_in = whole(c["inflow_depth"], l0)
+    length = whole(c["bed_length"], l0)
+    weir = whole(c["weir_height"], l0) if c["weir_height"] > 0 else 0.0
+    u_in = float(c["discharge"]) / h_in
+    layers = geometry.layers_for(2.1)
+    rows = int(round(h_in / l0))
+
+    # Inflow boundary: a pressure layer at x = -l0/2 and dummy layers behind it.
+    ys = (np.arange(rows) + 0.5) * l0
+    inflow_pts = np.concatenate(
+        [np.stack([np.full(rows, -(k + 0.5) * l0), ys], -1) for k in range(layers)]
+    )
+    inflow_kind = np.where(np.arange(len(inflow_pts)) < rows, Kind.WALL, Kind.DUMMY)
+    # Bed under the inflow (and the travel of its dummies) and the channel.
+    bed_lower = [-(layers + 1) * l0, -layers * l0]
+    bed = geometry.block(bed_lower, [length, 0.0], l0)
+    bed_layer = np.rint(-bed[:, 1] / l0 - 0.5).astype(int)
+    bed_kind = np.where(bed_layer == 0, Kind.WALL, Kind.DUMMY)
+    parts = [inflow_pts, bed]
+    kinds = [inflow_kind, bed_kind]
+    if weir > 0:
+        w = geometry.block([length, -layers * l0], [length + layers * l0, weir], l0)
+        w_layer = np.rint((w[:, 0] - length) / l0 - 0.5).astype(int)
+        parts.append(w)
+        kinds.append(np.where(w_layer == 0, Kind.WALL, Kind.DUMMY))
+    fluid = (
+        geometry.block([0.0, 0.0], [length, h_in], l0)
+        if c["initial_fill"]
+        else np.zeros((0, 2))
+    )
+    position = np.concatenate([fluid] + parts)
+    kind = np.concatenate(
+        [np.full(len(fluid), int(Kind.FLUID))] + [k.astype(int) for k in kinds]
+    ).astype(np.int32)
+    n_fluid = len(fluid)
+
+    dt = default_dt(c, u_in + math.sqrt(c["gravity"] * h_in))
+    if c["pool"] is None:
+        columns = math.ceil(u_in * float(c["t_end"]) / l0) + 2
+        pool = rows * columns if not c["initial_fill"] else n_fluid // 2 + 4 * rows
+    else:
+        pool = int(c["pool"])
+    capacity = len(position) + pool
+    top = max(h_in, weir) + 0.3 * length
+    lower = np.array([-(layers + 3) * l0, -(layers + 2) * l0 - 0.2 * length])
+    upper = np.array([length + (layers + 3) * l0, top])
+    solver, weight = make_solver(c)
+    scene = make_scene(
+        position,
+        l0,
+        (lower, upper),
+        capacity=capacity,
+        solver=solver,
+        weight=weight,
+        max_neighbours=c["max_neighbours"],
+        cell_capacity=c["cell_capacity"],
+    )
+    outflow_at = length + (layers * l0 if weir > 0 else 0.0) + l0
+    scene = _with_boundaries(
+        scene,
+        Inflow(
+            pressure_layer=tuple(range(n_fluid, n_fluid + rows)),
+            boundary=tuple(range(n_fluid, n_fluid + len(inflow_pts))),
+            origin=-0.5 * l0,
+        ),
+        Outflow(position=outflow_at),
+    )
+    params = make_params(
+        2,
+        dt=dt,
+        density=c["density"],
+        viscosity=c["viscosity"],
+        gravity=c["gravity"],
+        beta=c["beta"],
+        sound_speed=c["sound_speed"],
+    )
+    params = _with_inflow(
+        params, InflowParams(velocity=np.asarray(u_in, params.dt.dtype))
+    )
+    velocity = np.zeros_like(position)
+    velocity[:n_fluid, 0] = u_in
+    velocity[n_fluid : n_fluid + len(inflow_pts), 0] = u_in
+    state = make_state(scene, position, kind, velocity=velocity)
+    probes = (
+        FluidCount("fluid_count"),
+        WaterLevel("level_upstream", 0.25 * length, 0.0, l0),
+        WaterLevel("level_middle", 0.5 * length, 0.0, l0),
+        WaterLevel("level_downstream", 0.9 * length, 0.0, l0),
+    )
+    config = {
+        **c,
+        "inflow_depth": h_in,
+        "bed_length": length,
+        "weir_height": weir,
+        "pool": pool,
+    }
+    return Case(
+        name="flume",
+        scene=scene,
+        params=params,
+        state=state,
+        probes=probes,
+        t_end=float(c["t_end"]),
+        config=config,
+    )
+
+
+def _with_boundaries(scene, inflow, outflow):
+    import equinox as eqx
+
+    return eqx.tree_at(
+        lambda s: (s.inflow, s.outflow),
+        scene,
+        (inflow, outflow),
+        is_leaf=lambda x: x is None,
+    )
+
+
+def _with_inflow(params, inflow):
+    import equinox as eqx
+
+    return eqx.tree_at(lambda p: p.inflow, params, inflow, is_leaf=lambda x: x is None)
