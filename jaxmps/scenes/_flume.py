@@ -1,4 +1,4 @@
-"""Open-channel flume: inflow at unit discharge q, free overfall or tail weir, outflow."""
+"""Open-channel flume: inflow at unit discharge q, free overfall or tail weir."""
 
 import math
 
