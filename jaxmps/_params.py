@@ -5,6 +5,7 @@ import jax
 import jax.numpy as jnp
 from jaxtyping import Array, Float
 
+from .fluid._motion import HarmonicParams, StrokeParams
 from .fluid._open import InflowParams
 
 
@@ -20,6 +21,8 @@ class Params(eqx.Module):
         sound_speed: artificial speed of sound c [m/s] of the explicit (E-MPS) equation
             of state; unused by the semi-implicit solver.
         inflow: inflow parameters, present exactly when the Scene has an inflow.
+        motion: parameters of the Scene's prescribed wall motion (`HarmonicParams`
+            or `StrokeParams`), present exactly when it has one.
     """
 
     density: Float[Array, ""] = eqx.field(converter=jnp.asarray)
@@ -29,6 +32,7 @@ class Params(eqx.Module):
     beta: Float[Array, ""] = eqx.field(converter=jnp.asarray)
     sound_speed: Float[Array, ""] = eqx.field(converter=jnp.asarray)
     inflow: InflowParams | None = None
+    motion: HarmonicParams | StrokeParams | None = None
 
     def __check_init__(self):
         # Only concrete scalars can be checked; traced or batched values pass through.

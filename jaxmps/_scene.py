@@ -2,7 +2,7 @@
 
 import equinox as eqx
 
-from .fluid import AbstractSolver, Inflow, Outflow, SemiImplicit
+from .fluid import AbstractSolver, Inflow, Outflow, PrescribedMotion, SemiImplicit
 from .neighbours import Grid
 from .operators import AbstractGradient, AbstractWeight, CorrectedGradient, MPSWeight
 
@@ -28,6 +28,7 @@ class Scene(eqx.Module):
         solver: how the fluid is advanced (`SemiImplicit()` or `Explicit()`).
         inflow: optional moving inflow boundary fed from the inactive pool.
         outflow: optional outflow plane returning fluid to the pool.
+        motion: optional prescribed motion of wall particles (piston, shaken tank).
     """
 
     dim: int
@@ -44,6 +45,7 @@ class Scene(eqx.Module):
     solver: AbstractSolver = SemiImplicit()
     inflow: Inflow | None = None
     outflow: Outflow | None = None
+    motion: PrescribedMotion | None = None
 
     def __check_init__(self):
         if self.dim not in (2, 3):

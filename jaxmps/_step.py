@@ -25,6 +25,10 @@ def check_compatible(scene: Scene, params: Params, state: State) -> None:
         raise ValueError(
             "Scene.inflow and Params.inflow must both be set or both be None."
         )
+    if (scene.motion is None) != (params.motion is None):
+        raise ValueError(
+            "Scene.motion and Params.motion must both be set or both be None."
+        )
     if params.gravity.shape[-1] != scene.dim:
         raise ValueError(
             f"Params.gravity has {params.gravity.shape[-1]} components; the Scene is "
@@ -34,6 +38,11 @@ def check_compatible(scene: Scene, params: Params, state: State) -> None:
 
 def _step(scene: Scene, params: Params, state: State) -> tuple[State, StepInfo]:
     pool_short = jnp.asarray(False)
+    if scene.motion is not None:
+        with jax.named_scope("motion"):
+            state = fluid.move_walls(
+                scene, scene.motion, params.motion, params.dt, state
+            )
     if scene.inflow is not None:
         with jax.named_scope("inflow"):
             state, pool_short = fluid.apply_inflow(

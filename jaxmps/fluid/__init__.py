@@ -4,6 +4,13 @@ from ._cg import SolveInfo as SolveInfo
 from ._cg import solve_spd as solve_spd
 from ._correct import pressure_gradient as pressure_gradient
 from ._explicit import Explicit as Explicit
+from ._motion import AbstractMotionLaw as AbstractMotionLaw
+from ._motion import Harmonic as Harmonic
+from ._motion import HarmonicParams as HarmonicParams
+from ._motion import PrescribedMotion as PrescribedMotion
+from ._motion import StrokeParams as StrokeParams
+from ._motion import Tabulated as Tabulated
+from ._motion import move_walls as move_walls
 from ._open import Inflow as Inflow
 from ._open import InflowParams as InflowParams
 from ._open import Outflow as Outflow

@@ -12,13 +12,17 @@ from ._probes import AbstractProbe as AbstractProbe
 from ._probes import FluidPressureNear as FluidPressureNear
 from ._probes import FrontPosition as FrontPosition
 from ._probes import PressureAt as PressureAt
+from ._probes import StripLevel as StripLevel
 from ._probes import WaterLevel as WaterLevel
 from ._probes import observe_probes as observe_probes
+from ._wave_tank import DEFAULTS as _WAVE_TANK
+from ._wave_tank import wave_tank as wave_tank
 
 _REGISTRY = {
     "dam_break": (dam_break, _DAM_BREAK),
     "flume": (flume, _FLUME),
     "hydrostatic": (hydrostatic, _HYDROSTATIC),
+    "wave_tank": (wave_tank, _WAVE_TANK),
 }
 
 

@@ -111,3 +111,22 @@ class _ProbeObserver(eqx.Module):
         for probe in self.probes:
             out[probe.name] = probe(scene, state)
         return out
+
+
+class StripLevel(AbstractProbe):
+    """Mean water depth [m] over the strip |x - `x`| < `width`/2 from the fluid volume
+    it holds (particle count x l0^(d-1) / width; 2-D), minus `still_depth`: a
+    smoother surface-elevation gauge than the highest particle."""
+
+    name: str
+    x: float
+    width: float
+    spacing: float
+    still_depth: float
+
+    def __call__(self, scene, state):
+        del scene
+        fluid = jnp.logical_and(state.active, state.kind == int(Kind.FLUID))
+        inside = fluid & (jnp.abs(state.position[:, 0] - self.x) < 0.5 * self.width)
+        area = jnp.sum(inside).astype(state.position.dtype) * self.spacing**2
+        return area / self.width - self.still_depth

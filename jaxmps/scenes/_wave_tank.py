@@ -1,0 +1,166 @@
+"""Wave tank with a piston wave maker (seed 000 §2.11 approach 1)."""
+
+import math
+
+import equinox as eqx
+import numpy as np
+
+from .. import geometry
+from .._build import make_params, make_scene, make_state
+from .._types import Kind
+from ..fluid import PrescribedMotion, StrokeParams, Tabulated
+from ._case import Case
+from ._common import default_dt, make_solver, resolve, whole
+from ._probes import StripLevel
+
+DEFAULTS = {
+    "tank_length": 2.0,
+    "depth": 0.1,
+    "stroke": 0.03,  # full piston stroke S [m] (peak to peak)
+    "wave_period": 0.8,  # [s]
+    "ramp_periods": 1.0,  # periods over which the stroke amplitude ramps up
+    "end": "wall",  # "wall" or "beach"
+    "beach_slope": 5.0,  # beach rises 1 per `beach_slope` horizontally
+    "gauge_x": 0.6,  # surface-elevation gauge position from the piston [m]
+    "spacing": 0.01,
+    "dim": 2,
+    "t_end": 3.5,
+}
+
+
+def linear_wave_number(period: float, depth: float, gravity: float) -> float:
+    """k from the dispersion relation omega^2 = g k tanh(k h) (Newton)."""
+    omega = 2 * math.pi / period
+    k = omega**2 / gravity
+    for _ in range(50):
+        f = gravity * k * math.tanh(k * depth) - omega**2
+        df = (
+            gravity * math.tanh(k * depth)
+            + gravity * k * depth / math.cosh(k * depth) ** 2
+        )
+        k -= f / df
+    return k
+
+
+def piston_height_ratio(k: float, depth: float) -> float:
+    """Linear piston wave-maker theory: H / S = 2 (cosh 2kh - 1) / (sinh 2kh + 2kh)
+    (Dean & Dalrymple 1991, eq. 6.22)."""
+    kh2 = 2 * k * depth
+    return 2 * (math.cosh(kh2) - 1) / (math.sinh(kh2) + kh2)
+
+
+def wave_tank(**overrides) -> Case:
+    """Still water of `depth` in a tank of `tank_length`; a piston at x = 0 moves
+    with X(t) = (S/2) r(t) sin(2 pi t / T), r ramping linearly from 0 to 1 over
+    `ramp_periods` periods; the far end is a vertical wall or a 1:`beach_slope` beach.
+
+    Probes: `eta` (strip-volume surface elevation at `gauge_x`, strip 5 l0 wide).
+    """
+    c = resolve("wave_tank", DEFAULTS, overrides)
+    if int(c["dim"]) != 2:
+        raise ValueError("wave_tank is 2-D only for now (dim=2).")
+    if c["end"] not in ("wall", "beach"):
+        raise ValueError(f"end must be 'wall' or 'beach', got {c['end']!r}.")
+    l0 = c["spacing"]
+    length, depth = whole(c["tank_length"], l0), whole(c["depth"], l0)
+    height = whole(1.6 * depth, l0)
+    half_stroke = 0.5 * float(c["stroke"])
+    layers = geometry.layers_for(2.1)
+    travel = whole(half_stroke + l0, l0)
+
+    fluid = geometry.block([0.0, 0.0], [length, depth], l0)
+    # Bed from behind the piston's travel to the far end; far wall (tank() pieces).
+    walls, wall_kind = geometry.tank(
+        [-travel - layers * l0, 0.0], [length, height], l0, layers=layers
+    )
+    keep = walls[:, 0] > -travel - layers * l0  # drop the left wall: the piston
+    walls, wall_kind = walls[keep], wall_kind[keep]
+    if c["end"] == "beach":
+        toe = length - depth * float(c["beach_slope"]) * 1.2
+        s = float(c["beach_slope"])
+        grid = geometry.block([toe, 0.0], [length, height], l0)
+        surface = (grid[:, 0] - toe) / s
+        below = grid[:, 1] < surface
+        dist = (surface - grid[:, 1]) / math.sqrt(1 + 1 / s**2)
+        beach = grid[below & (dist < layers * l0)]
+        beach_layer = np.floor(dist[below & (dist < layers * l0)] / l0).astype(int)
+        fluid = fluid[
+            ~((fluid[:, 0] > toe) & (fluid[:, 1] < (fluid[:, 0] - toe) / s + 0.5 * l0))
+        ]
+        walls = np.concatenate([walls, beach])
+        wall_kind = np.concatenate(
+            [wall_kind, np.where(beach_layer == 0, Kind.WALL, Kind.DUMMY)]
+        ).astype(np.int32)
+    # Piston: a pressure layer at x = -l0/2 and dummies behind, full tank height.
+    rows = int(round(height / l0))
+    ys = (np.arange(rows) + 0.5) * l0
+    piston = np.concatenate(
+        [np.stack([np.full(rows, -(k + 0.5) * l0), ys], -1) for k in range(layers)]
+    )
+    piston_kind = np.where(np.arange(len(piston)) < rows, Kind.WALL, Kind.DUMMY)
+    position = np.concatenate([fluid, piston, walls])
+    kind = np.concatenate(
+        [np.full(len(fluid), int(Kind.FLUID)), piston_kind, wall_kind]
+    ).astype(np.int32)
+    n_fluid = len(fluid)
+
+    period = float(c["wave_period"])
+    lower = np.array([-travel - (layers + 3) * l0, -(layers + 2) * l0])
+    upper = np.array([length + (layers + 3) * l0, height + depth])
+    solver, weight = make_solver(c)
+    scene = make_scene(
+        position,
+        l0,
+        (lower, upper),
+        solver=solver,
+        weight=weight,
+        max_neighbours=c["max_neighbours"],
+        cell_capacity=c["cell_capacity"],
+    )
+    motion = PrescribedMotion(
+        particles=tuple(range(n_fluid, n_fluid + len(piston))),
+        axis=(1.0, 0.0),
+        law=Tabulated(),
+    )
+    scene = eqx.tree_at(lambda s: s.motion, scene, motion, is_leaf=lambda x: x is None)
+    omega_scale = 2 * math.pi * half_stroke / period
+    velocity_scale = max(math.sqrt(c["gravity"] * depth), omega_scale)
+    params = make_params(
+        2,
+        dt=default_dt(c, velocity_scale),
+        density=c["density"],
+        viscosity=c["viscosity"],
+        gravity=c["gravity"],
+        beta=c["beta"],
+        sound_speed=c["sound_speed"],
+    )
+    t_end = float(c["t_end"])
+    times = np.linspace(0.0, t_end + period, int((t_end + period) / period * 40) + 1)
+    ramp = np.clip(times / (float(c["ramp_periods"]) * period), 0.0, 1.0)
+    stroke = half_stroke * ramp * np.sin(2 * math.pi * times / period)
+    dtype = params.dt.dtype
+    motion_params = StrokeParams(
+        times=np.asarray(times, dtype), stroke=np.asarray(stroke, dtype)
+    )
+    params = eqx.tree_at(
+        lambda p: p.motion, params, motion_params, is_leaf=lambda x: x is None
+    )
+    state = make_state(scene, position, kind)
+    probes = (StripLevel("eta", float(c["gauge_x"]), 5 * l0, l0, depth),)
+    k = linear_wave_number(period, depth, c["gravity"])
+    config = {
+        **c,
+        "tank_length": length,
+        "depth": depth,
+        "wave_number": k,
+        "linear_wave_height": piston_height_ratio(k, depth) * float(c["stroke"]),
+    }
+    return Case(
+        name="wave_tank",
+        scene=scene,
+        params=params,
+        state=state,
+        probes=probes,
+        t_end=t_end,
+        config=config,
+    )
