@@ -1,5 +1,6 @@
 """Rollouts: nested `lax.scan` with checkpointing, an observe function, and `throw`."""
 
+import inspect
 from collections.abc import Callable
 from typing import Any
 
@@ -95,11 +96,7 @@ def simulate(
     # sound speed, ...) can be refused with a ValueError; inside a user's own jit
     # they are tracers and only the run-time result codes apply.
     check_compatible(scene, params, state)
-    save_every = n_steps if save_every is None else save_every
-    if save_every < 1 or n_steps < 1 or n_steps % save_every:
-        raise ValueError(
-            f"n_steps={n_steps} must be a positive multiple of save_every={save_every}."
-        )
+    _check_steps(n_steps, save_every)
     return _simulate(
         scene,
         params,
@@ -112,8 +109,34 @@ def simulate(
     )
 
 
+def _check_steps(n_steps: int, save_every: int | None) -> None:
+    save_every = n_steps if save_every is None else save_every
+    if save_every < 1 or n_steps < 1 or n_steps % save_every:
+        raise ValueError(
+            f"n_steps={n_steps} must be a positive multiple of save_every={save_every}."
+        )
+
+
+def _lower(*args, **kwargs):
+    """`simulate.lower(...)`: the same checks, then the lowered rollout, so that
+    benchmarks can time compilation (`.compile()`) apart from running. Call the
+    compiled program with exactly the same arguments."""
+    bound = inspect.signature(simulate).bind(*args, **kwargs)
+    bound.apply_defaults()
+    a = bound.arguments
+    check_compatible(a["scene"], a["params"], a["state"])
+    _check_steps(a["n_steps"], a["save_every"])
+    return _simulate.lower(*args, **kwargs)
+
+
+simulate.lower = _lower
+
+
 @eqx.filter_jit
-def _simulate(scene, params, state, n_steps, save_every, observe, *, throw, checkpoint):
+def _simulate(
+    scene, params, state, n_steps, save_every, observe, *, throw=True, checkpoint=True
+):
+    save_every = n_steps if save_every is None else save_every
 
     def one_step(carry: State, _):
         carry, _ = _step(scene, params, carry)

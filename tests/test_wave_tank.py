@@ -67,3 +67,21 @@ def test_piston_wave_height_within_10_percent_of_linear_theory():
     coef, *_ = np.linalg.lstsq(basis, eta[window], rcond=None)
     height = 2 * np.hypot(coef[0], coef[1])
     assert height == pytest.approx(case.config["linear_wave_height"], rel=0.10)
+
+
+def test_beach_geometry_and_short_run():
+    case = jaxmps.scenes.wave_tank(end="beach", tank_length=1.0, depth=0.1, t_end=0.2)
+    x = np.asarray(case.state.position)
+    kind = np.asarray(case.state.kind)
+    slope = case.config["beach_slope"]
+    toe = case.config["tank_length"] - case.config["depth"] * slope * 1.2
+    fluid = kind == int(jaxmps.Kind.FLUID)
+    surface = (x[:, 0] - toe) / slope
+    on_beach = (x[:, 0] > toe) & (x[:, 0] < case.config["tank_length"])
+    # No fluid below the beach surface; pressure walls line it.
+    assert np.all(x[fluid & on_beach, 1] >= surface[fluid & on_beach])
+    walls = (kind == int(jaxmps.Kind.WALL)) & on_beach & (x[:, 1] > 0)
+    assert walls.sum() > 10
+    assert np.all(np.abs(x[walls, 1] - surface[walls]) < 1.5 * case.config["spacing"])
+    tr = jaxmps.simulate(case.scene, case.params, case.state, 60, 60)
+    assert int(tr.state.active.sum()) == int(case.state.active.sum())

@@ -63,16 +63,36 @@ def flume(**overrides) -> Case:
         [np.stack([np.full(rows, -(k + 0.5) * l0), ys], -1) for k in range(layers)]
     )
     inflow_kind = np.where(np.arange(len(inflow_pts)) < rows, Kind.WALL, Kind.DUMMY)
+    # A fixed wall above the inflow column, so that a level raised by a tail weir
+    # (or a jump) cannot spill back over the inflow boundary.
+    h_c = (float(c["discharge"]) ** 2 / c["gravity"]) ** (1 / 3)  # critical depth
+    # Level upstream of a weir ~ crest + 1.5 h_c (broad-crested weir); keep margin.
+    level = weir + 2 * max(h_c, h_in) if weir > 0 else h_in
+    above = int(round((level + 4 * l0) / l0)) - rows
+    ys_above = (rows + np.arange(above) + 0.5) * l0
+    upstream = np.concatenate(
+        [
+            np.stack([np.full(above, -(k + 0.5) * l0), ys_above], -1)
+            for k in range(layers)
+        ]
+    )
+    upstream_kind = np.where(np.arange(len(upstream)) < above, Kind.WALL, Kind.DUMMY)
     # Bed under the inflow (and the travel of its dummies) and the channel.
     bed_lower = [-(layers + 1) * l0, -layers * l0]
     bed = geometry.block(bed_lower, [length, 0.0], l0)
     bed_layer = np.rint(-bed[:, 1] / l0 - 0.5).astype(int)
     bed_kind = np.where(bed_layer == 0, Kind.WALL, Kind.DUMMY)
-    parts = [inflow_pts, bed]
-    kinds = [inflow_kind, bed_kind]
+    parts = [inflow_pts, upstream, bed]
+    kinds = [inflow_kind, upstream_kind, bed_kind]
     if weir > 0:
-        w = geometry.block([length, -layers * l0], [length + layers * l0, weir], l0)
-        w_layer = np.rint((w[:, 0] - length) / l0 - 0.5).astype(int)
+        w = geometry.block([length, 0.0], [length + layers * l0, weir], l0)
+        # Every face of the weir that water can touch (upstream, crest, downstream)
+        # is lined with pressure walls: dummies carry no pressure, so an exposed
+        # dummy face lets fluid through.
+        exposed = np.minimum.reduce(
+            [w[:, 0] - length, weir - w[:, 1], length + layers * l0 - w[:, 0]]
+        )
+        w_layer = np.rint(exposed / l0 - 0.5).astype(int)
         parts.append(w)
         kinds.append(np.where(w_layer == 0, Kind.WALL, Kind.DUMMY))
     fluid = (
@@ -89,11 +109,16 @@ def flume(**overrides) -> Case:
     dt = default_dt(c, u_in + math.sqrt(c["gravity"] * h_in))
     if c["pool"] is None:
         columns = math.ceil(u_in * float(c["t_end"]) / l0) + 2
-        pool = rows * columns if not c["initial_fill"] else n_fluid // 2 + 4 * rows
+        # Enough for what enters over t_end on a dry bed, or for the bed filled up
+        # to the level a tail weir holds (storage behind it).
+        stored = math.ceil(level * length / l0**2) + 4 * rows - n_fluid
+        pool = max(rows * columns if not c["initial_fill"] else 0, stored, 4 * rows)
     else:
         pool = int(c["pool"])
     capacity = len(position) + pool
-    top = max(h_in, weir) + 0.3 * length
+    margin = c["domain_margin"]
+    # Choice: room above the water for splash (a jet off a tail weir rises ~0.3 m).
+    top = max(h_in, weir) + (max(0.3 * length, 0.4) if margin is None else margin)
     lower = np.array([-(layers + 3) * l0, -(layers + 2) * l0 - 0.2 * length])
     upper = np.array([length + (layers + 3) * l0, top])
     solver, weight = make_solver(c)
