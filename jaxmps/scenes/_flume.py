@@ -110,8 +110,9 @@ def flume(**overrides) -> Case:
     if c["pool"] is None:
         columns = math.ceil(u_in * float(c["t_end"]) / l0) + 2
         # Enough for what enters over t_end on a dry bed, or for the bed filled up
-        # to the level a tail weir holds (storage behind it).
-        stored = math.ceil(level * length / l0**2) + 4 * rows - n_fluid
+        # to 1.5 x the level a tail weir holds, or the inflow depth (the flow
+        # deepens as it develops).
+        stored = math.ceil(1.5 * level * length / l0**2) + 4 * rows - n_fluid
         pool = max(rows * columns if not c["initial_fill"] else 0, stored, 4 * rows)
     else:
         pool = int(c["pool"])
