@@ -4,6 +4,7 @@ The everyday API is re-exported here; subpackages (`neighbours`, `operators`,
 `fluid`, `geometry`, `io`, `scenes`) are public namespaces for the rest.
 """
 
+from . import calibration as calibration
 from . import fluid as fluid
 from . import geometry as geometry
 from . import io as io
@@ -25,6 +26,8 @@ from ._simulate import simulate as simulate
 from ._state import State as State
 from ._step import step as step
 from ._types import Kind as Kind
+from .calibration import calibrate as calibrate
+from .calibration import sweep as sweep
 from .fluid import Explicit as Explicit
 from .fluid import SemiImplicit as SemiImplicit
 from .operators import CorrectedGradient as CorrectedGradient

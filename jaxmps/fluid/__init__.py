@@ -1,18 +1,18 @@
 """Fluid solvers and their stages."""
 
+from .._params import HarmonicParams as HarmonicParams
+from .._params import InflowParams as InflowParams
+from .._params import StrokeParams as StrokeParams
 from ._cg import SolveInfo as SolveInfo
 from ._cg import solve_spd as solve_spd
 from ._correct import pressure_gradient as pressure_gradient
 from ._explicit import Explicit as Explicit
 from ._motion import AbstractMotionLaw as AbstractMotionLaw
 from ._motion import Harmonic as Harmonic
-from ._motion import HarmonicParams as HarmonicParams
 from ._motion import PrescribedMotion as PrescribedMotion
-from ._motion import StrokeParams as StrokeParams
 from ._motion import Tabulated as Tabulated
 from ._motion import move_walls as move_walls
 from ._open import Inflow as Inflow
-from ._open import InflowParams as InflowParams
 from ._open import Outflow as Outflow
 from ._open import apply_inflow as apply_inflow
 from ._open import apply_outflow as apply_outflow

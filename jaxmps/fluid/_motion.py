@@ -6,31 +6,8 @@ import equinox as eqx
 import jax.numpy as jnp
 from jaxtyping import Array, Float
 
+from .._params import HarmonicParams, StrokeParams
 from .._state import State
-
-
-class HarmonicParams(eqx.Module):
-    """x(t) = amplitude sin(2 pi frequency (t - start)) for t >= start, else 0.
-
-    Attributes:
-        amplitude: displacement amplitude A [m].
-        frequency: frequency f [Hz].
-    """
-
-    amplitude: Float[Array, ""] = eqx.field(converter=jnp.asarray)
-    frequency: Float[Array, ""] = eqx.field(converter=jnp.asarray)
-
-
-class StrokeParams(eqx.Module):
-    """A tabulated stroke history, linearly interpolated (held constant outside).
-
-    Attributes:
-        times: sample times [s], increasing.
-        stroke: displacement at those times [m].
-    """
-
-    times: Float[Array, " m"] = eqx.field(converter=jnp.asarray)
-    stroke: Float[Array, " m"] = eqx.field(converter=jnp.asarray)
 
 
 class AbstractMotionLaw(eqx.Module):

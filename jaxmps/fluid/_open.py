@@ -4,20 +4,11 @@ allocated: the State's shapes never change."""
 
 import equinox as eqx
 import jax.numpy as jnp
-from jaxtyping import Array, Bool, Float
+from jaxtyping import Array, Bool
 
+from .._params import InflowParams
 from .._state import State
 from .._types import Kind
-
-
-class InflowParams(eqx.Module):
-    """Inflow parameters (differentiable).
-
-    Attributes:
-        velocity: inflow speed along +x [m/s]; unit discharge q = velocity x depth.
-    """
-
-    velocity: Float[Array, ""] = eqx.field(converter=jnp.asarray)
 
 
 class Inflow(eqx.Module):

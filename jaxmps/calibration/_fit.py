@@ -1,0 +1,289 @@
+"""`jaxmps.calibrate`: fit Params to an experiment curve by gradient (optax)."""
+
+import abc
+import json
+import time
+from pathlib import Path
+from typing import Any
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from .._simulate import simulate
+from ..scenes import observe_probes
+from ._fields import get_field, set_field
+
+
+class Curve(eqx.Module):
+    """A measured time series (its own sampling) to fit a probe to.
+
+    Attributes:
+        times: sample times [s], increasing.
+        values: measured values, same length.
+        weights: optional per-sample weights (default 1).
+        window: optional (t_start, t_end): only samples inside count.
+    """
+
+    times: Any = eqx.field(converter=np.asarray)
+    values: Any = eqx.field(converter=np.asarray)
+    weights: Any = None
+    window: tuple[float, float] | None = None
+
+    def __check_init__(self):
+        if self.times.shape != self.values.shape or self.times.ndim != 1:
+            raise ValueError("Curve.times and Curve.values must be equal-length 1-D.")
+        if np.any(np.diff(self.times) <= 0):
+            raise ValueError("Curve.times must be strictly increasing.")
+
+    def mask(self) -> np.ndarray:
+        if self.window is None:
+            return np.ones(self.times.shape, bool)
+        lo, hi = self.window
+        return (self.times >= lo) & (self.times <= hi)
+
+
+def curve_loss(sim_times, sim_values, curve: Curve):
+    """Weighted mean squared difference between the curve and the simulated probe,
+    linearly interpolated to the curve's sample times (inside the window)."""
+    mask = curve.mask()
+    t = jnp.asarray(curve.times[mask])
+    y = jnp.asarray(curve.values[mask])
+    w = (
+        jnp.ones_like(y)
+        if curve.weights is None
+        else jnp.asarray(np.asarray(curve.weights)[mask])
+    )
+    sim = jnp.interp(t, sim_times, sim_values)
+    return jnp.sum(w * (sim - y) ** 2) / jnp.sum(w)
+
+
+class AbstractTransform(eqx.Module):
+    """Map between a parameter and the unconstrained variable optimised."""
+
+    @abc.abstractmethod
+    def forward(self, u):
+        """Parameter from the unconstrained variable."""
+
+    @abc.abstractmethod
+    def inverse(self, x):
+        """Unconstrained variable from the parameter."""
+
+
+class Identity(AbstractTransform):
+    def forward(self, u):
+        return u
+
+    def inverse(self, x):
+        return x
+
+
+class Log(AbstractTransform):
+    """Optimise log(x): keeps a positive parameter positive, steps are relative."""
+
+    def forward(self, u):
+        return jnp.exp(u)
+
+    def inverse(self, x):
+        return jnp.log(x)
+
+
+class Bounded(AbstractTransform):
+    """x = low + (high - low) sigmoid(u): keeps x inside (low, high)."""
+
+    low: float
+    high: float
+
+    def __check_init__(self):
+        if not self.low < self.high:
+            raise ValueError("Bounded needs low < high.")
+
+    def forward(self, u):
+        return self.low + (self.high - self.low) * jax.nn.sigmoid(u)
+
+    def inverse(self, x):
+        s = (x - self.low) / (self.high - self.low)
+        return jnp.log(s) - jnp.log1p(-s)
+
+
+class CalibrationResult(eqx.Module):
+    """History and outcome of `calibrate`.
+
+    Attributes:
+        fields: the fitted Params field names.
+        values: parameter values of the best (lowest-loss) iterate {field: float}.
+        best_loss: the loss there, and `best_iteration` (1-based).
+        history: {"loss": [...], field: [...]} per iteration (values before the step).
+        params: the Params of the best iterate.
+        iterations: steps taken; `converged`: whether `tol` was reached.
+    """
+
+    fields: tuple[str, ...]
+    values: dict[str, float]
+    best_loss: float
+    best_iteration: int
+    history: dict[str, list]
+    params: Any
+    iterations: int
+    converged: bool
+    wall_time: float
+
+    def save(self, path) -> None:
+        """Write values and history as JSON."""
+        Path(path).write_text(
+            json.dumps(
+                dict(
+                    fields=list(self.fields),
+                    values=self.values,
+                    best_loss=self.best_loss,
+                    best_iteration=self.best_iteration,
+                    history=self.history,
+                    iterations=self.iterations,
+                    converged=self.converged,
+                    wall_time=self.wall_time,
+                ),
+                indent=1,
+            )
+        )
+
+    def plot(self, path) -> None:
+        """Loss and parameters against iteration, saved as an image."""
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+
+        fig, axes = plt.subplots(
+            1, 1 + len(self.fields), figsize=(4 * (1 + len(self.fields)), 3)
+        )
+        axes = np.atleast_1d(axes)
+        axes[0].semilogy(self.history["loss"])
+        axes[0].set(xlabel="iteration", ylabel="loss")
+        for ax, name in zip(axes[1:], self.fields):
+            ax.plot(self.history[name])
+            ax.set(xlabel="iteration", ylabel=name)
+        fig.tight_layout()
+        fig.savefig(path, dpi=100)
+        plt.close(fig)
+
+
+def calibrate(
+    case,
+    fields: dict[str, AbstractTransform | None],
+    curve: Curve,
+    probe: str,
+    n_steps: int,
+    save_every: int,
+    optimiser=None,
+    iterations: int = 50,
+    tol: float = 0.0,
+    initial: dict[str, float] | None = None,
+    progress: bool = True,
+) -> CalibrationResult:
+    """Fit Params `fields` so that probe `probe` reproduces `curve`.
+
+    The loss is `curve_loss` of the probe's saved time series; its gradient comes
+    from reverse mode through the whole (checkpointed) rollout. Each iteration is
+    one jitted value-and-gradient call plus an optax update.
+
+    Args:
+        case: a `jaxmps.scenes.Case` (its Params are the starting point).
+        fields: {Params field name: transform (`Log()`, `Bounded(lo, hi)`, or None
+            for `Identity()`)}.
+        curve: the measured curve.
+        probe: name of one of the case's probes.
+        n_steps, save_every: the rollout (as for `simulate`); the probe is saved
+            every `save_every` steps.
+        optimiser: an optax GradientTransformation (default `optax.adam(0.05)` on the
+            unconstrained variables).
+        iterations: maximum optimiser steps.
+        tol: stop when the loss falls below `tol`.
+        initial: optional starting values overriding the case's Params.
+        progress: show a progress bar (tqdm).
+
+    Returns:
+        A `CalibrationResult`.
+    """
+    import optax
+
+    names = [p.name for p in case.probes]
+    if probe not in names:
+        raise ValueError(f"Unknown probe {probe!r}; the case has {names}.")
+    transforms = {k: (Identity() if t is None else t) for k, t in fields.items()}
+    params = case.params
+    for name, value in (initial or {}).items():
+        base = get_field(params, name)
+        params = set_field(params, name, jnp.asarray(value, base.dtype))
+    for name in transforms:
+        get_field(params, name)
+    observe = observe_probes(case.probes)
+    optimiser = optax.adam(0.05) if optimiser is None else optimiser
+
+    def with_values(u):
+        p = params
+        for name, t in transforms.items():
+            base = get_field(params, name)
+            p = set_field(p, name, t.forward(u[name]).astype(base.dtype))
+        return p
+
+    def loss_fn(u):
+        tr = simulate(
+            case.scene,
+            with_values(u),
+            case.state,
+            n_steps,
+            save_every,
+            observe,
+            throw=False,
+        )
+        return curve_loss(tr.saved["time"], tr.saved[probe], curve)
+
+    value_and_grad = eqx.filter_jit(jax.value_and_grad(loss_fn))
+    u = {name: t.inverse(get_field(params, name)) for name, t in transforms.items()}
+    state = optimiser.init(u)
+    history = {"loss": [], **{name: [] for name in transforms}}
+    bar = None
+    if progress:
+        from tqdm.auto import tqdm
+
+        bar = tqdm(total=iterations, desc="calibrate", leave=False, delay=2.0)
+    start = time.perf_counter()
+    converged = False
+    it = 0
+    best = (np.inf, u, 0)
+    for it in range(1, iterations + 1):
+        loss, grad = value_and_grad(u)
+        history["loss"].append(float(loss))
+        if float(loss) < best[0]:
+            best = (float(loss), u, it)
+        for name, t in transforms.items():
+            history[name].append(float(t.forward(u[name])))
+        if bar is not None:
+            bar.update(1)
+            bar.set_postfix(loss=f"{float(loss):.3g}")
+        if float(loss) <= tol:
+            converged = True
+            break
+        if not np.isfinite(float(loss)):
+            raise RuntimeError(
+                f"calibrate: the loss became {float(loss)} at iteration {it}; the "
+                "rollout probably failed. Check the starting values and `dt`."
+            )
+        updates, state = optimiser.update(grad, state, u)
+        u = optax.apply_updates(u, updates)
+    if bar is not None:
+        bar.close()
+    # Adam's momentum overshoots near the optimum: return the best iterate seen.
+    fitted = with_values(best[1])
+    return CalibrationResult(
+        fields=tuple(transforms),
+        values={name: float(get_field(fitted, name)) for name in transforms},
+        best_loss=best[0],
+        best_iteration=best[2],
+        history=history,
+        params=fitted,
+        iterations=it,
+        converged=converged,
+        wall_time=time.perf_counter() - start,
+    )
