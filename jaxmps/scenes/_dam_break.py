@@ -2,7 +2,7 @@
 
 from ._case import Case
 from ._common import nearest_wall, resolve, tank_case, velocity_scale, whole
-from ._probes import FrontPosition, PressureAt, WaterLevel
+from ._probes import FrontPosition, PressureAt, StripLevel, WaterLevel
 
 DEFAULTS = {
     "column_width": 0.146,
@@ -23,7 +23,8 @@ def dam_break(**overrides) -> Case:
 
     Probes: `front` (surge-front position from the left wall, contiguous fluid within
     2 l0 of the floor), `column_height` (residual height at the left wall),
-    `gauge` (water level at `gauge_x`), `pressure_right_wall` (pressure-wall particle
+    `gauge` (water level at `gauge_x`), `gauge_depth` (smooth volume-based depth over
+    4 l0 at `gauge_x`, for calibration), `pressure_right_wall` (pressure-wall particle
     on the right wall nearest height l0... 2 l0) and `pressure_left_wall`.
     """
     c = resolve("dam_break", DEFAULTS, overrides)
@@ -56,6 +57,7 @@ def dam_break(**overrides) -> Case:
         FrontPosition("front", 0.0, 0.0, 2 * l0, l0, int(round(length / l0)) // 2 + 1),
         WaterLevel("column_height", 0.5 * l0, 0.0, l0),
         WaterLevel("gauge", float(c["gauge_x"]), 0.0, l0),
+        StripLevel("gauge_depth", float(c["gauge_x"]), 4 * l0, l0, 0.0, softness=1.0),
         PressureAt("pressure_right_wall", tuple(n_fluid + i for i in right)),
         PressureAt("pressure_left_wall", tuple(n_fluid + i for i in left)),
     )

@@ -3,6 +3,7 @@
 import abc
 
 import equinox as eqx
+import jax
 import jax.numpy as jnp
 from jaxtyping import Array, Float
 
@@ -116,17 +117,27 @@ class _ProbeObserver(eqx.Module):
 class StripLevel(AbstractProbe):
     """Mean water depth [m] over the strip |x - `x`| < `width`/2 from the fluid volume
     it holds (particle count x l0^(d-1) / width; 2-D), minus `still_depth`: a
-    smoother surface-elevation gauge than the highest particle."""
+    smoother surface-elevation gauge than the highest particle.
+
+    With `softness` > 0 the strip edges are smoothed over `softness` x l0 (each
+    particle counts sigmoid((width/2 - |x_j - x|) / (softness l0))), so the probe
+    is a differentiable function of the positions: use it as a calibration target.
+    """
 
     name: str
     x: float
     width: float
     spacing: float
     still_depth: float
+    softness: float = 0.0
 
     def __call__(self, scene, state):
         del scene
         fluid = jnp.logical_and(state.active, state.kind == int(Kind.FLUID))
-        inside = fluid & (jnp.abs(state.position[:, 0] - self.x) < 0.5 * self.width)
-        area = jnp.sum(inside).astype(state.position.dtype) * self.spacing**2
+        inside = 0.5 * self.width - jnp.abs(state.position[:, 0] - self.x)
+        if self.softness > 0:
+            weight = jax.nn.sigmoid(inside / (self.softness * self.spacing))
+        else:
+            weight = (inside > 0).astype(state.position.dtype)
+        area = jnp.sum(jnp.where(fluid, weight, 0.0)) * self.spacing**2
         return area / self.width - self.still_depth
