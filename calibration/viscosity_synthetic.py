@@ -38,7 +38,8 @@ def main():
         HERE / "results" / "viscosity_synthetic_curve.csv",
         np.c_[t, level],
         delimiter=",",
-        header="synthetic water level at x = 0.219 m, dam break, nu = 0.01\nt_s,level_m",
+        header="synthetic water depth (gauge_depth) at x = 0.219 m, dam break, "
+        "nu = 0.01\nt_s,depth_m",
     )
     curve = Curve(times=t, values=level, window=(0.05, float(t[-1])))
     res = calibrate(
