@@ -22,7 +22,8 @@ class SweepResult(eqx.Module):
         result: per-member result codes (b,) as integers (0 = successful); see
             `jaxmps.Result` for the messages.
         wall_time: seconds spent in all calls (compilation included).
-        first_call_time: seconds of the first chunk (compilation + one run).
+        first_call_time: seconds of the first chunk (compilation, on the first sweep
+            of this scene and shapes, + one run).
     """
 
     values: dict[str, Any]
@@ -51,6 +52,18 @@ def batch_params(params, values: dict[str, Any]):
             lambda p, n=name: get_field(p, n), axes, 0, is_leaf=lambda x: x is None
         )
     return batched, axes, sizes.pop()
+
+
+@eqx.filter_jit
+def _batched(scene, params, state, n_steps, save_every, observe, axes):
+    """One compiled program per (scene, shapes, n_steps, save_every, observe, axes):
+    repeated sweeps reuse it."""
+
+    def run(p):
+        tr = simulate(scene, p, state, n_steps, save_every, observe, throw=False)
+        return tr.saved, tr.result._value
+
+    return jax.vmap(run, in_axes=(axes,))(params)
 
 
 def sweep(
@@ -90,13 +103,10 @@ def sweep(
     chunk = b if chunk is None else max(1, min(int(chunk), b))
     n_chunks = -(-b // chunk)
 
-    def run(p):
-        tr = simulate(
-            case.scene, p, case.state, n_steps, save_every, observe, throw=False
+    def batched_run(chunk_params):
+        return _batched(
+            case.scene, chunk_params, case.state, n_steps, save_every, observe, axes
         )
-        return tr.saved, tr.result._value
-
-    batched_run = eqx.filter_jit(jax.vmap(run, in_axes=(axes,)))
 
     def take(lo):
         def leaf(x, a):
