@@ -33,9 +33,11 @@ def main():
     obs = jaxmps.scenes.observe_probes(case.probes)
     n_steps = 160
     single = timed(
-        lambda: jaxmps.simulate(
-            case.scene, case.params, case.state, n_steps, 20, obs, throw=False
-        ).saved
+        lambda: (
+            jaxmps.simulate(
+                case.scene, case.params, case.state, n_steps, 20, obs, throw=False
+            ).saved
+        )
     )
     rows = [dict(batch=1, run_s=single, per_member_s=single, ratio_to_single=1.0)]
     for b in (4, 8, 16):
@@ -44,17 +46,31 @@ def main():
         jaxmps.sweep(case, {"viscosity": nus}, n_steps, 20, chunk=b)
         res = jaxmps.sweep(case, {"viscosity": nus}, n_steps, 20, chunk=b)
         run = res.wall_time
-        rows.append(dict(batch=b, run_s=run, per_member_s=run / b,
-                         ratio_to_single=run / b / single))
+        rows.append(
+            dict(
+                batch=b,
+                run_s=run,
+                per_member_s=run / b,
+                ratio_to_single=run / b / single,
+            )
+        )
     load = os.getloadavg()[0]
     out = HERE / "results" / "sweep_cost_cpu"
-    out.with_suffix(".json").write_text(json.dumps(dict(rows=rows, load=load), indent=1))
-    lines = ["| batch | run [s] | per member [s] | per member / single run |",
-             "|---|---|---|---|"]
-    lines += [f"| {r['batch']} | {r['run_s']:.3f} | {r['per_member_s']:.3f} | "
-              f"{r['ratio_to_single']:.2f} |" for r in rows]
+    out.with_suffix(".json").write_text(
+        json.dumps(dict(rows=rows, load=load), indent=1)
+    )
+    lines = [
+        "| batch | run [s] | per member [s] | per member / single run |",
+        "|---|---|---|---|",
+    ]
+    lines += [
+        f"| {r['batch']} | {r['run_s']:.3f} | {r['per_member_s']:.3f} | "
+        f"{r['ratio_to_single']:.2f} |"
+        for r in rows
+    ]
     out.with_suffix(".md").write_text(
-        "# sweep cost per member (CPU, 2 cores)\n\n" + "\n".join(lines)
+        "# sweep cost per member (CPU, 2 cores)\n\n"
+        + "\n".join(lines)
         + f"\n\n1-min load average at the end: {load:.2f}\n"
     )
     print("\n".join(lines))
