@@ -4,7 +4,6 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .. import neighbours
 from .._numerics import take_rows
 from .._result import StepInfo
 from .._state import State
@@ -12,11 +11,10 @@ from .._types import PRESSURE_KINDS, is_kind
 from ..operators import (
     AbstractWeight,
     EMPSGradientWeight,
-    make_pairs,
     number_density,
     reference_constants,
 )
-from ._predict import is_mobile, predict_velocity
+from ._predict import is_mobile, neighbour_pairs, predict_velocity
 from ._semi_implicit import AbstractSolver
 
 
@@ -69,10 +67,7 @@ class Explicit(AbstractSolver):
     def advance(self, scene, params, state):
         dt = params.dt
         mobile = is_mobile(state.kind, state.active)
-        nbrs_k = neighbours.build(
-            scene.grid, state.position, state.active, scene.max_neighbours, scene.r_e
-        )
-        pairs_k = make_pairs(nbrs_k.index, state.position, scene.weight, scene.r_e)
+        nbrs_k, pairs_k = neighbour_pairs(scene, state.position, state.active)
         u_star = predict_velocity(
             scene, params, state.velocity, state.kind, state.active, pairs_k
         )
@@ -80,10 +75,7 @@ class Explicit(AbstractSolver):
             mobile[:, None], state.position + dt * u_star, state.position
         )
 
-        nbrs = neighbours.build(
-            scene.grid, x_star, state.active, scene.max_neighbours, scene.r_e
-        )
-        pairs = make_pairs(nbrs.index, x_star, scene.weight, scene.r_e)
+        nbrs, pairs = neighbour_pairs(scene, x_star, state.active)
         n_star = number_density(pairs)
         carries = jnp.logical_and(state.active, is_kind(state.kind, PRESSURE_KINDS))
         # Free surface and spray: n* <= n0 gives P = 0 (threshold 1, eq. 3.34).

@@ -3,10 +3,11 @@
 import jax.numpy as jnp
 from jaxtyping import Array, Bool, Float
 
+from .. import neighbours
 from .._numerics import take_rows
 from .._params import Params
 from .._types import MOBILE_KINDS, is_kind
-from ..operators import Pairs, laplacian
+from ..operators import Pairs, laplacian, make_pairs
 
 
 def predict_velocity(
@@ -54,3 +55,11 @@ def collide(
 
 def is_mobile(kind, active) -> Bool[Array, " n"]:
     return jnp.logical_and(active, is_kind(kind, MOBILE_KINDS))
+
+
+def neighbour_pairs(scene, position: Float[Array, "n d"], active: Bool[Array, " n"]):
+    """Neighbour lists at `position` and their pair geometry: (Neighbours, Pairs)."""
+    nbrs = neighbours.build(
+        scene.grid, position, active, scene.max_neighbours, scene.r_e
+    )
+    return nbrs, make_pairs(nbrs.index, position, scene.weight, scene.r_e)

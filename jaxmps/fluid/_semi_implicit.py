@@ -5,13 +5,12 @@ import abc
 import equinox as eqx
 import jax.numpy as jnp
 
-from .. import neighbours
 from .._params import Params
 from .._result import StepInfo
 from .._state import State
-from ..operators import make_pairs, number_density
+from ..operators import number_density
 from ._correct import pressure_gradient
-from ._predict import collide, is_mobile, predict_velocity
+from ._predict import collide, is_mobile, neighbour_pairs, predict_velocity
 from ._pressure import solve_pressure
 from ._source import AbstractSource, MixedSource
 from ._surface import FreeSurface, detect_surface
@@ -79,10 +78,7 @@ class SemiImplicit(AbstractSolver):
         dt = params.dt
         mobile = is_mobile(state.kind, state.active)
         # 1. Explicit part at positions r^k (eq. 2.2-3, 2.2-5).
-        nbrs_k = neighbours.build(
-            scene.grid, state.position, state.active, scene.max_neighbours, scene.r_e
-        )
-        pairs_k = make_pairs(nbrs_k.index, state.position, scene.weight, scene.r_e)
+        nbrs_k, pairs_k = neighbour_pairs(scene, state.position, state.active)
         u_star = predict_velocity(
             scene, params, state.velocity, state.kind, state.active, pairs_k
         )
@@ -99,10 +95,7 @@ class SemiImplicit(AbstractSolver):
         )
 
         # 2. Tentative number density and free surface at r* (eq. 2.2-6, 2.4-1).
-        nbrs = neighbours.build(
-            scene.grid, x_star, state.active, scene.max_neighbours, scene.r_e
-        )
-        pairs = make_pairs(nbrs.index, x_star, scene.weight, scene.r_e)
+        nbrs, pairs = neighbour_pairs(scene, x_star, state.active)
         n_star = number_density(pairs)
         surface = detect_surface(
             self.surface, params.beta, scene.n0, n_star, state.kind, state.active, pairs

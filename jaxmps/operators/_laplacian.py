@@ -9,11 +9,11 @@ from ._pairs import Pairs
 
 def laplacian(
     pairs: Pairs,
-    field: Float[Array, "n *c"],
+    field: Float[Array, " n *c"],
     n0: float,
     lam: float,
     dim: int,
-) -> Float[Array, "n *c"]:
+) -> Float[Array, " n *c"]:
     """<lap phi>_i = 2d / (lambda n0) sum_j (phi_j - phi_i) w_ij (seed 000 eq. 2.1-6).
 
     `lam` is lambda in absolute units [m^2]. `field` may be scalar (n,) or vector
