@@ -40,9 +40,6 @@ Writes `benchmarks/results/accuracy_vs_cost_<cpu|gpu>.{json,md,png}` (override w
 import argparse
 import json
 import math
-import os
-import platform
-import subprocess
 import sys
 import time
 from pathlib import Path
@@ -51,6 +48,8 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
+from _common import loadavg as _loadavg
+from _common import machine_info
 
 import jaxmps
 
@@ -116,13 +115,6 @@ def _core_simulate():
     mod = sys.modules.get("jaxmps._simulate")
     core = getattr(mod, "_simulate", None) if mod is not None else None
     return core if hasattr(core, "lower") else None
-
-
-def _loadavg():
-    try:
-        return os.getloadavg()[0]
-    except (AttributeError, OSError):
-        return None
 
 
 def _timed_rollout(scene, params, state, n_steps, save_every, observe, args):
@@ -285,61 +277,6 @@ def run_case(case_name: str, solver: str, spacing: float, args) -> dict:
 
 
 # ----------------------------------------------------------------------------- output
-
-
-def machine_info() -> dict:
-    cpu_model = None
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                cpu_model = line.split(":", 1)[1].strip()
-                break
-    except OSError:
-        pass
-    try:
-        usable = len(os.sched_getaffinity(0))
-    except AttributeError:
-        usable = os.cpu_count()
-    try:
-        commit = subprocess.run(
-            ["git", "rev-parse", "--short", "HEAD"],
-            cwd=HERE,
-            capture_output=True,
-            text=True,
-            check=True,
-        ).stdout.strip()
-        dirty = bool(
-            subprocess.run(
-                ["git", "status", "--porcelain", "--untracked-files=no"],
-                cwd=HERE,
-                capture_output=True,
-                text=True,
-                check=True,
-            ).stdout.strip()
-        )
-    except (OSError, subprocess.CalledProcessError):
-        commit, dirty = None, None
-    import jaxlib
-
-    device = jax.devices()[0]
-    return {
-        "platform": platform.platform(),
-        "cpu_model": cpu_model,
-        "cpu_count": os.cpu_count(),
-        "cpu_usable": usable,
-        "python": platform.python_version(),
-        "jax": jax.__version__,
-        "jaxlib": jaxlib.__version__,
-        "equinox": eqx.__version__,
-        "jaxmps": jaxmps.__version__,
-        "backend": jax.default_backend(),
-        "device": f"{device.platform}:{getattr(device, 'device_kind', '?')}",
-        "dtype": str(jnp.zeros(()).dtype),
-        "git_commit": commit,
-        "git_dirty_tracked": dirty,
-        "date": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
-        "loadavg_1min_start": _loadavg(),
-    }
 
 
 def _f(x, fmt=".2f"):

@@ -44,7 +44,6 @@ Writes `benchmarks/results/gradient_memory_<backend>.{json,md,png}` (override wi
 import argparse
 import json
 import os
-import platform
 import resource
 import subprocess
 import sys
@@ -55,6 +54,7 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
+from _common import loadavg, machine_info
 
 import jaxmps
 
@@ -80,13 +80,6 @@ def current_rss_bytes() -> int | None:
     except (OSError, ValueError, IndexError):
         return None
     return pages * os.sysconf("SC_PAGE_SIZE")
-
-
-def loadavg():
-    try:
-        return os.getloadavg()[0]
-    except (AttributeError, OSError):
-        return None
 
 
 def choose_save_every(n_steps: int) -> int:
@@ -229,50 +222,6 @@ def run_isolated(cfg: dict) -> dict:
         sys.stderr.write(proc.stderr[-4000:])
         return {**cfg, "error": f"worker exited with {proc.returncode}"}
     return json.loads(proc.stdout.strip().splitlines()[-1])
-
-
-def machine_info() -> dict:
-    cpu_model = None
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                cpu_model = line.split(":", 1)[1].strip()
-                break
-    except OSError:
-        pass
-    try:
-        usable = len(os.sched_getaffinity(0))
-    except AttributeError:
-        usable = os.cpu_count()
-    try:
-        commit = subprocess.run(
-            ["git", "rev-parse", "--short", "HEAD"],
-            cwd=HERE,
-            capture_output=True,
-            text=True,
-            check=True,
-        ).stdout.strip()
-    except (OSError, subprocess.CalledProcessError):
-        commit = None
-    import jaxlib
-
-    device = jax.devices()[0]
-    return {
-        "platform": platform.platform(),
-        "cpu_model": cpu_model,
-        "cpu_usable": usable,
-        "python": platform.python_version(),
-        "jax": jax.__version__,
-        "jaxlib": jaxlib.__version__,
-        "equinox": eqx.__version__,
-        "jaxmps": jaxmps.__version__,
-        "backend": jax.default_backend(),
-        "device": f"{device.platform}:{getattr(device, 'device_kind', '?')}",
-        "jax_enable_x64": bool(jax.config.jax_enable_x64),
-        "git_commit": commit,
-        "date": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
-        "loadavg_1min_start": loadavg(),
-    }
 
 
 def slope(ts, values):

@@ -31,8 +31,6 @@ Writes `benchmarks/results/step_throughput_<backend>.json` and `.md` (override w
 
 import argparse
 import json
-import os
-import platform
 import resource
 import subprocess
 import sys
@@ -43,6 +41,8 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
+from _common import loadavg as _loadavg
+from _common import machine_info
 
 import jaxmps
 
@@ -117,14 +117,6 @@ def _best_of(call, repeats: int) -> tuple[float, list[float], object]:
         out = jax.block_until_ready(call())
         times.append(time.perf_counter() - t0)
     return min(times), times, out
-
-
-def _loadavg():
-    """1-minute load average (other processes competing for the cores), or None."""
-    try:
-        return os.getloadavg()[0]
-    except (AttributeError, OSError):
-        return None
 
 
 def _memory_record(baseline_rss: float) -> dict:
@@ -268,64 +260,6 @@ def gradient_case(spacing: float, n_steps: int, repeats: int) -> dict:
 
 
 # ----------------------------------------------------------------------------- driver
-
-
-def machine_info() -> dict:
-    cpu_model = None
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                cpu_model = line.split(":", 1)[1].strip()
-                break
-    except OSError:
-        pass
-    try:
-        usable = len(os.sched_getaffinity(0))
-    except AttributeError:
-        usable = os.cpu_count()
-    try:
-        commit = subprocess.run(
-            ["git", "rev-parse", "--short", "HEAD"],
-            cwd=HERE,
-            capture_output=True,
-            text=True,
-            check=True,
-        ).stdout.strip()
-        dirty = bool(
-            subprocess.run(
-                ["git", "status", "--porcelain", "--untracked-files=no"],
-                cwd=HERE,
-                capture_output=True,
-                text=True,
-                check=True,
-            ).stdout.strip()
-        )
-    except (OSError, subprocess.CalledProcessError):
-        commit, dirty = None, None
-    device = jax.devices()[0]
-    import jaxlib
-
-    dtype = str(jaxmps.scenes.dam_break(spacing=0.0146).state.position.dtype)
-    return {
-        "platform": platform.platform(),
-        "machine": platform.machine(),
-        "cpu_model": cpu_model,
-        "cpu_count": os.cpu_count(),
-        "cpu_usable": usable,
-        "python": platform.python_version(),
-        "jax": jax.__version__,
-        "jaxlib": jaxlib.__version__,
-        "equinox": eqx.__version__,
-        "jaxmps": jaxmps.__version__,
-        "backend": jax.default_backend(),
-        "device": f"{device.platform}:{getattr(device, 'device_kind', '?')}",
-        "dtype": dtype,
-        "jax_enable_x64": bool(jax.config.jax_enable_x64),
-        "git_commit": commit,
-        "git_dirty_tracked": dirty,
-        "date": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
-        "loadavg_1min_start": _loadavg(),
-    }
 
 
 def _run_worker(kind: str, spacing: float, steps: int, repeats: int, isolate: bool):

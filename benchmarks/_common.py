@@ -1,0 +1,72 @@
+"""Helpers shared by the benchmark scripts: machine description and load average."""
+
+import os
+import platform
+import subprocess
+import time
+from pathlib import Path
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import jaxlib
+
+import jaxmps
+
+HERE = Path(__file__).resolve().parent
+
+
+def loadavg() -> float | None:
+    """1-minute load average (other processes competing for the cores), or None."""
+    try:
+        return os.getloadavg()[0]
+    except (AttributeError, OSError):
+        return None
+
+
+def _git(*args: str) -> str:
+    return subprocess.run(
+        ["git", *args], cwd=HERE, capture_output=True, text=True, check=True
+    ).stdout.strip()
+
+
+def machine_info() -> dict:
+    """What ran the benchmark: platform, CPU, versions, device, dtype, git commit."""
+    cpu_model = None
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                cpu_model = line.split(":", 1)[1].strip()
+                break
+    except OSError:
+        pass
+    try:
+        usable = len(os.sched_getaffinity(0))
+    except AttributeError:
+        usable = os.cpu_count()
+    try:
+        commit = _git("rev-parse", "--short", "HEAD")
+        dirty = bool(_git("status", "--porcelain", "--untracked-files=no"))
+    except (OSError, subprocess.CalledProcessError):
+        commit, dirty = None, None
+    device = jax.devices()[0]
+    return {
+        "platform": platform.platform(),
+        "machine": platform.machine(),
+        "cpu_model": cpu_model,
+        "cpu_count": os.cpu_count(),
+        "cpu_usable": usable,
+        "python": platform.python_version(),
+        "jax": jax.__version__,
+        "jaxlib": jaxlib.__version__,
+        "equinox": eqx.__version__,
+        "jaxmps": jaxmps.__version__,
+        "backend": jax.default_backend(),
+        "device": f"{device.platform}:{getattr(device, 'device_kind', '?')}",
+        "dtype": str(jnp.zeros(()).dtype),
+        "jax_enable_x64": bool(jax.config.jax_enable_x64),
+        "git_commit": commit,
+        "git_dirty_tracked": dirty,
+        "date": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
+        "loadavg_1min_start": loadavg(),
+    }
