@@ -4,6 +4,7 @@ The everyday API is re-exported here; subpackages (`neighbours`, `operators`,
 `fluid`, `geometry`, `io`, `scenes`) are public namespaces for the rest.
 """
 
+from . import bodies as bodies
 from . import calibration as calibration
 from . import fluid as fluid
 from . import geometry as geometry
@@ -11,6 +12,7 @@ from . import io as io
 from . import neighbours as neighbours
 from . import operators as operators
 from . import scenes as scenes
+from ._build import add_rigid_bodies as add_rigid_bodies
 from ._build import make_params as make_params
 from ._build import make_scene as make_scene
 from ._build import make_state as make_state

@@ -180,3 +180,199 @@ def make_state(
         active=jnp.asarray(active),
         result=Result.successful,
     )
+
+
+def add_rigid_bodies(
+    scene: Scene,
+    params: Params,
+    state: State,
+    body,
+    *,
+    density,
+    mu_static=0.5,
+    mu_kinetic=None,
+    orientation=None,
+    friction="default",
+    contact_distance: float = 1.5,
+) -> tuple[Scene, Params, State]:
+    """Turn particles of a built case into rigid bodies.
+
+    Args:
+        scene, params, state: a case without bodies (from `make_scene` etc.).
+        body: body index of each initial particle (or of each slot), -1 for none;
+            bodies are numbered 0..b-1. Their particles become `Kind.RIGID`; their
+            initial velocities are projected onto a rigid motion.
+        density: body density [kg/m^3], a scalar or one per body.
+        mu_static, mu_kinetic: friction coefficients against walls, a scalar or one
+            per body (`mu_kinetic` defaults to `mu_static`, as seed 000 uses).
+        orientation: the orientation the particles are given in (angle in degrees
+            per body in 2-D, rotation vector in degrees per body in 3-D); the body
+            frame is the unrotated one, so reported orientations are absolute.
+        friction: a `jaxmps.bodies.Coulomb` law, or None for frictionless contact.
+        contact_distance: see `jaxmps.bodies.RigidBodies`.
+
+    Returns:
+        The new (scene, params, state).
+
+    Raises:
+        ValueError: for body indices that are not 0..b-1, bodies of fewer than two
+            particles or with a degenerate inertia, inactive body particles, and
+            bodies overlapping each other or walls (closer than 0.5 l0).
+    """
+    import dataclasses
+
+    from .bodies import Coulomb, RigidBodies, RigidState
+    from .bodies import _rotation as rot
+
+    if scene.rigid is not None:
+        raise ValueError("This scene already has rigid bodies; add all in one call.")
+    n, dim = scene.capacity, scene.dim
+    body = np.asarray(body)
+    if body.ndim != 1 or body.shape[0] > n or not np.issubdtype(body.dtype, np.integer):
+        raise ValueError(
+            f"body must be a 1-D integer array of at most {n} entries, got shape "
+            f"{body.shape} and dtype {body.dtype}."
+        )
+    ids = np.full(n, -1, np.int64)
+    ids[: body.shape[0]] = body
+    count = int(ids.max()) + 1 if ids.max() >= 0 else 0
+    if count == 0:
+        raise ValueError("body assigns no particle to a body (all entries are -1).")
+    present = np.unique(ids[ids >= 0])
+    if ids.min() < -1 or len(present) != count:
+        raise ValueError(
+            f"body indices must be -1 or 0..b-1 with every body present; got "
+            f"{sorted(set(ids.tolist()) - {-1})}."
+        )
+    active = np.asarray(state.active)
+    if np.any((ids >= 0) & ~active):
+        raise ValueError("body assigns inactive (pool) slots to a body.")
+
+    def per_body(value, name):
+        value = np.broadcast_to(np.asarray(value, np.float64), (count,)).copy()
+        if not np.all(np.isfinite(value)):
+            raise ValueError(f"{name} must be finite, got {value.tolist()}.")
+        return value
+
+    density = per_body(density, "density")
+    mu_static = per_body(mu_static, "mu_static")
+    mu_kinetic = mu_static if mu_kinetic is None else per_body(mu_kinetic, "mu_kinetic")
+
+    position = np.array(state.position, np.float64)
+    velocity = np.array(state.velocity, np.float64)
+    kind = np.array(state.kind)
+    l0 = scene.spacing
+    q_size = rot.orientation_size(dim)
+    if orientation is None:
+        orient = np.zeros((count, 3 if dim == 3 else 1))
+    else:
+        orient = np.asarray(orientation, np.float64)
+        orient = (
+            orient.reshape(count, -1) if orient.ndim else np.full((count, 1), orient)
+        )
+        if orient.shape != (count, 1 if dim == 2 else 3):
+            what = "an angle" if dim == 2 else "a rotation vector"
+            raise ValueError(
+                f"orientation must give {what} (degrees) per body for {count} "
+                f"bodies; got shape {orient.shape}."
+            )
+    orient = np.deg2rad(orient)
+    if dim == 2:
+        q = orient
+    else:
+        q = np.asarray(rot.quaternion_from_rotation_vector(jnp.asarray(orient)))
+    rotation = np.asarray(rot.matrix(jnp.asarray(q), dim))
+
+    reference = np.zeros((n, dim))
+    centre = np.zeros((count, dim))
+    v_body = np.zeros((count, dim))
+    w_body = np.zeros((count, rot.spin_size(dim)))
+    others = np.where(active & (ids < 0))[0]
+    for b in range(count):
+        members = np.where(ids == b)[0]
+        if len(members) < 2:
+            raise ValueError(f"Body {b} has {len(members)} particle(s); need >= 2.")
+        c = position[members].mean(axis=0)
+        arm = position[members] - c
+        inertia = np.asarray(rot.inertia_of(jnp.asarray(arm))).sum(axis=0)
+        if (
+            np.linalg.det(np.atleast_2d(inertia))
+            <= 1e-12 * (len(members) * l0**2) ** (inertia.shape[0])
+        ):
+            raise ValueError(f"Body {b} has a degenerate (collinear) particle set.")
+        centre[b] = c
+        reference[members] = arm @ rotation[b]  # R^T arm, row-wise
+        v = velocity[members]
+        v_body[b] = v.mean(axis=0)
+        spin = np.asarray(rot.cross(jnp.asarray(arm), jnp.asarray(v))).sum(axis=0)
+        w_body[b] = np.linalg.solve(np.atleast_2d(inertia), np.atleast_1d(spin))
+        velocity[members] = v_body[b] + np.asarray(
+            rot.spin_cross(jnp.asarray(w_body[b]), jnp.asarray(arm))
+        )
+        kind[members] = 3  # Kind.RIGID
+        # Overlaps: other bodies and walls/fluid closer than half a spacing.
+        rest = np.concatenate([others, np.where(ids > b)[0]])
+        gap = _closest(position[members], position[rest], 0.5 * l0)
+        if gap < 0.5 * l0:
+            raise ValueError(
+                f"Body {b} overlaps other particles (closest at {gap:.3g} m < 0.5 "
+                "spacing): move it, or remove the wall or fluid particles it covers."
+            )
+
+    friction_law = Coulomb() if friction == "default" else friction
+    new_scene = dataclasses.replace(
+        scene,
+        rigid=RigidBodies(
+            count=count, friction=friction_law, contact_distance=contact_distance
+        ),
+    )
+    dtype = params.density.dtype
+    from ._params import RigidParams
+
+    new_params = dataclasses.replace(
+        params,
+        rigid=RigidParams(
+            density=jnp.asarray(density, dtype),
+            mu_static=jnp.asarray(mu_static, dtype),
+            mu_kinetic=jnp.asarray(mu_kinetic, dtype),
+        ),
+    )
+    fdtype = state.position.dtype
+    zeros_b = jnp.zeros((count, dim), fdtype)
+    rigid = RigidState(
+        body=jnp.asarray(ids, jnp.int32),
+        reference=jnp.asarray(reference, fdtype),
+        centre=jnp.asarray(centre, fdtype),
+        orientation=jnp.asarray(np.asarray(q).reshape(count, q_size), fdtype),
+        velocity=jnp.asarray(v_body, fdtype),
+        angular_velocity=jnp.asarray(w_body, fdtype),
+        force=zeros_b,
+        torque=jnp.zeros_like(jnp.asarray(w_body, fdtype)),
+        contact_force=zeros_b,
+        friction=zeros_b,
+        sliding=jnp.zeros((count,), bool),
+        particle_contact=jnp.zeros((n, dim), fdtype),
+        particle_normal=jnp.zeros((n, dim), fdtype),
+    )
+    new_state = dataclasses.replace(
+        state,
+        kind=jnp.asarray(kind, state.kind.dtype),
+        velocity=jnp.asarray(velocity, fdtype),
+        rigid=rigid,
+    )
+    return new_scene, new_params, new_state
+
+
+def _closest(a: np.ndarray, b: np.ndarray, cutoff: float) -> float:
+    """Smallest distance between points of `a` and `b` if below `cutoff`, else inf
+    (only points of `b` in the box of `a` widened by `cutoff` are compared)."""
+    if len(a) == 0 or len(b) == 0:
+        return math.inf
+    near = np.all((b >= a.min(0) - cutoff) & (b <= a.max(0) + cutoff), axis=1)
+    b = b[near]
+    best = math.inf
+    for start in range(0, len(b), 512):
+        chunk = b[start : start + 512]
+        d = np.linalg.norm(a[:, None, :] - chunk[None, :, :], axis=-1)
+        best = min(best, float(d.min()))
+    return best

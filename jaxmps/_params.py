@@ -40,6 +40,33 @@ class StrokeParams(eqx.Module):
     stroke: Float[Array, " m"] = eqx.field(converter=jnp.asarray)
 
 
+class RigidParams(eqx.Module):
+    """Per-body parameters of the rigid-body component (differentiable).
+
+    Attributes:
+        density: density of each body [kg/m^3], shape (b,).
+        mu_static: static friction coefficient against walls, shape (b,).
+        mu_kinetic: kinetic (sliding) friction coefficient, shape (b,).
+    """
+
+    density: Float[Array, " b"] = eqx.field(converter=jnp.asarray)
+    mu_static: Float[Array, " b"] = eqx.field(converter=jnp.asarray)
+    mu_kinetic: Float[Array, " b"] = eqx.field(converter=jnp.asarray)
+
+    def __check_init__(self):
+        for name in ("density", "mu_static", "mu_kinetic"):
+            value = getattr(self, name)
+            if isinstance(value, jax.core.Tracer):
+                continue
+            bad = ~(value > 0) if name == "density" else ~(value >= 0)
+            if bool(jnp.any(bad)):
+                sign = "positive" if name == "density" else ">= 0"
+                raise ValueError(
+                    f"Params.rigid.{name} must be {sign} for every body, got "
+                    f"{jnp.asarray(value).tolist()}."
+                )
+
+
 class Params(eqx.Module):
     """Physical coefficients. Float arrays only: changing a value never recompiles.
 
@@ -54,6 +81,8 @@ class Params(eqx.Module):
         inflow: inflow parameters, present exactly when the Scene has an inflow.
         motion: parameters of the Scene's prescribed wall motion (`HarmonicParams`
             or `StrokeParams`), present exactly when it has one.
+        rigid: per-body density and friction coefficients, present exactly when the
+            Scene has rigid bodies.
     """
 
     density: Float[Array, ""] = eqx.field(converter=jnp.asarray)
@@ -64,6 +93,7 @@ class Params(eqx.Module):
     sound_speed: Float[Array, ""] = eqx.field(converter=jnp.asarray)
     inflow: InflowParams | None = None
     motion: HarmonicParams | StrokeParams | None = None
+    rigid: RigidParams | None = None
 
     def __check_init__(self):
         # Only concrete scalars can be checked; traced or batched values pass through.

@@ -2,6 +2,7 @@
 
 import equinox as eqx
 
+from .bodies import RigidBodies
 from .fluid import AbstractSolver, Inflow, Outflow, PrescribedMotion, SemiImplicit
 from .neighbours import Grid
 from .operators import AbstractGradient, AbstractWeight, CorrectedGradient, MPSWeight
@@ -29,6 +30,7 @@ class Scene(eqx.Module):
         inflow: optional moving inflow boundary fed from the inactive pool.
         outflow: optional outflow plane returning fluid to the pool.
         motion: optional prescribed motion of wall particles (piston, shaken tank).
+        rigid: optional rigid bodies (with contact and friction).
     """
 
     dim: int
@@ -46,6 +48,7 @@ class Scene(eqx.Module):
     inflow: Inflow | None = None
     outflow: Outflow | None = None
     motion: PrescribedMotion | None = None
+    rigid: RigidBodies | None = None
 
     def __check_init__(self):
         if self.dim not in (2, 3):

@@ -15,25 +15,44 @@ from ._state import State
 from ._step import _step, check_compatible
 
 
+# Rigid-body fields saved with each frame (the run file's /bodies group).
+BODY_FIELDS = (
+    "centre",
+    "orientation",
+    "velocity",
+    "angular_velocity",
+    "force",
+    "torque",
+    "contact_force",
+    "friction",
+)
+
+
 class Frame(eqx.Module):
-    """The default observation: one full particle snapshot."""
+    """The default observation: one full particle snapshot (and, in scenes with
+    rigid bodies, each body's `BODY_FIELDS` in `bodies`)."""
 
     time: Float[Array, ""]
     position: Float[Array, "n d"]
     velocity: Float[Array, "n d"]
     pressure: Float[Array, " n"]
     active: Any
+    bodies: dict[str, Any] | None = None
 
 
 def frame(scene: Scene, state: State) -> Frame:
-    """Observe a full snapshot (time, position, velocity, pressure, active)."""
+    """Observe a full snapshot (time, position, velocity, pressure, active, bodies)."""
     del scene
+    bodies = None
+    if state.rigid is not None:
+        bodies = {name: getattr(state.rigid, name) for name in BODY_FIELDS}
     return Frame(
         time=state.time,
         position=state.position,
         velocity=state.velocity,
         pressure=state.pressure,
         active=state.active,
+        bodies=bodies,
     )
 
 

@@ -4,6 +4,7 @@ import equinox as eqx
 from jaxtyping import Array, Bool, Float, Int
 
 from ._result import Result
+from .bodies._state import RigidState
 
 
 class State(eqx.Module):
@@ -19,6 +20,8 @@ class State(eqx.Module):
         active: whether the slot holds a live particle, shape (n,). Inactive slots are
             the pool: they are masked out of every sum and every neighbour search.
         result: the first failure of the run so far, or `Result.successful`.
+        rigid: the rigid bodies' sub-state, present exactly when the Scene has
+            rigid bodies.
     """
 
     time: Float[Array, ""]
@@ -29,3 +32,4 @@ class State(eqx.Module):
     kind: Int[Array, " n"]
     active: Bool[Array, " n"]
     result: Result
+    rigid: RigidState | None = None

@@ -4,7 +4,7 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 
-from . import fluid
+from . import bodies, fluid
 from ._params import Params
 from ._result import Result, StepInfo, update_result
 from ._scene import Scene
@@ -29,6 +29,27 @@ def check_compatible(scene: Scene, params: Params, state: State) -> None:
         raise ValueError(
             "Scene.motion and Params.motion must both be set or both be None."
         )
+    if (scene.rigid is None) != (params.rigid is None) or (scene.rigid is None) != (
+        state.rigid is None
+    ):
+        raise ValueError(
+            "Scene.rigid, Params.rigid and State.rigid must all be set or all be None; "
+            "build them together with `jaxmps.add_rigid_bodies`."
+        )
+    if scene.rigid is not None:
+        b = scene.rigid.count
+        shapes = {
+            "Params.rigid.density": params.rigid.density.shape[-1:],
+            "Params.rigid.mu_static": params.rigid.mu_static.shape[-1:],
+            "Params.rigid.mu_kinetic": params.rigid.mu_kinetic.shape[-1:],
+            "State.rigid.centre": state.rigid.centre.shape[-2:-1],
+        }
+        for name, shape in shapes.items():
+            if shape != (b,):
+                raise ValueError(
+                    f"{name} has {shape[0] if shape else 0} entries along its body "
+                    f"axis but the Scene has {b} rigid bodies."
+                )
     if params.gravity.shape[-1] != scene.dim:
         raise ValueError(
             f"Params.gravity has {params.gravity.shape[-1]} components; the Scene is "
@@ -53,8 +74,11 @@ def _step(scene: Scene, params: Params, state: State) -> tuple[State, StepInfo]:
     if scene.outflow is not None:
         with jax.named_scope("outflow"):
             new = fluid.apply_outflow(scene, scene.outflow, new)
-    # Future components (rigid projection, elastic update, friction, DEM) slot in here,
-    # each as `if scene.<component> is not None: new = <module>.<stage>(...)`.
+    if scene.rigid is not None:
+        with jax.named_scope("rigid"):
+            new = bodies.advance_bodies(scene, params, new)
+    # Future components (elastic update, DEM) slot in here, each as
+    # `if scene.<component> is not None: new = <module>.<stage>(...)`.
     with jax.named_scope("result"):
         mobile = jnp.logical_and(new.active, is_kind(new.kind, MOBILE_KINDS))
         speed = jnp.sqrt(jnp.sum(new.velocity**2, axis=-1))

@@ -16,6 +16,7 @@ def pressure_gradient(
     active: Bool[Array, " n"],
     n0: float,
     dim: int,
+    select: Bool[Array, "n k"] | None = None,
 ) -> Float[Array, "n d"]:
     """<grad P>_i over pressure-carrying neighbours.
 
@@ -25,4 +26,4 @@ def pressure_gradient(
     """
     carries = jnp.logical_and(active, is_kind(kind, PRESSURE_KINDS))
     include = take_rows(carries, pairs.index)
-    return gradient(pairs, pressure, n0, dim, include)
+    return gradient(pairs, pressure, n0, dim, include, select)

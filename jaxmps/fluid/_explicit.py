@@ -8,6 +8,12 @@ from .._numerics import take_rows
 from .._result import StepInfo
 from .._state import State
 from .._types import PRESSURE_KINDS, is_kind
+from ..bodies import (
+    contact_partners,
+    particle_density,
+    with_contact,
+    without_internal_pairs,
+)
 from ..operators import (
     AbstractWeight,
     EMPSGradientWeight,
@@ -69,7 +75,12 @@ class Explicit(AbstractSolver):
         mobile = is_mobile(state.kind, state.active)
         nbrs_k, pairs_k = neighbour_pairs(scene, state.position, state.active)
         u_star = predict_velocity(
-            scene, params, state.velocity, state.kind, state.active, pairs_k
+            scene,
+            params,
+            state.velocity,
+            state.kind,
+            state.active,
+            without_internal_pairs(state, pairs_k),
         )
         x_star = jnp.where(
             mobile[:, None], state.position + dt * u_star, state.position
@@ -99,9 +110,8 @@ class Explicit(AbstractSolver):
         terms = (p_sum * w_grad / pairs.distance**2)[..., None] * pairs.offset
         grad_p = (scene.dim / n0_grad) * jnp.sum(terms, axis=1)
 
-        u_new = jnp.where(
-            mobile[:, None], u_star - (dt / params.density) * grad_p, u_star
-        )
+        rho = jnp.reshape(particle_density(params, state), (-1, 1))
+        u_new = jnp.where(mobile[:, None], u_star - (dt / rho) * grad_p, u_star)
         # Seed 002 eq. 3.46 prints r^{k+1} = r* + dt u^{k+1}, which counts dt u* twice;
         # we use the original E-MPS update r^{k+1} = r^k + dt u^{k+1} (digest §2.6).
         x_new = jnp.where(mobile[:, None], state.position + dt * u_new, state.position)
@@ -115,7 +125,14 @@ class Explicit(AbstractSolver):
             kind=state.kind,
             active=state.active,
             result=state.result,
+            rigid=state.rigid,
         )
+        if state.rigid is not None:
+            partner = contact_partners(state, pairs)
+            contact_gradient = (scene.dim / n0_grad) * jnp.sum(
+                jnp.where(partner[..., None], terms, 0.0), axis=1
+            )
+            new_state = with_contact(scene, new_state, pairs, contact_gradient)
         info = StepInfo(
             pressure_iterations=jnp.asarray(0, jnp.int32),
             pressure_residual=jnp.zeros((), dtype=x_new.dtype),

@@ -8,6 +8,14 @@ import jax.numpy as jnp
 from .._params import Params
 from .._result import StepInfo
 from .._state import State
+from .._types import PRESSURE_KINDS, is_kind
+from ..bodies import (
+    body_pressure_gradient,
+    is_body,
+    particle_density,
+    with_contact,
+    without_internal_pairs,
+)
 from ..operators import number_density
 from ._correct import pressure_gradient
 from ._predict import collide, is_mobile, neighbour_pairs, predict_velocity
@@ -80,7 +88,12 @@ class SemiImplicit(AbstractSolver):
         # 1. Explicit part at positions r^k (eq. 2.2-3, 2.2-5).
         nbrs_k, pairs_k = neighbour_pairs(scene, state.position, state.active)
         u_star = predict_velocity(
-            scene, params, state.velocity, state.kind, state.active, pairs_k
+            scene,
+            params,
+            state.velocity,
+            state.kind,
+            state.active,
+            without_internal_pairs(state, pairs_k),
         )
         u_star = collide(
             u_star,
@@ -132,7 +145,17 @@ class SemiImplicit(AbstractSolver):
             scene.n0,
             scene.dim,
         )
-        u_prime = jnp.where(mobile[:, None], -(dt / params.density) * grad_p, 0.0)
+        contact_gradient = None
+        if state.rigid is not None:
+            carries = jnp.logical_and(state.active, is_kind(state.kind, PRESSURE_KINDS))
+            body_gradient, contact_gradient = body_pressure_gradient(
+                scene, state, pairs, pressure, carries
+            )
+            grad_p = jnp.where(is_body(state)[:, None], body_gradient, grad_p)
+        rho = particle_density(params, state)
+        u_prime = jnp.where(
+            mobile[:, None], -(dt / jnp.reshape(rho, (-1, 1))) * grad_p, 0.0
+        )
         new_state = State(
             time=state.time + dt,
             step=state.step + 1,
@@ -142,7 +165,10 @@ class SemiImplicit(AbstractSolver):
             kind=state.kind,
             active=state.active,
             result=state.result,
+            rigid=state.rigid,
         )
+        if state.rigid is not None:
+            new_state = with_contact(scene, new_state, pairs, contact_gradient)
         info = StepInfo(
             pressure_iterations=solve_info.iterations,
             pressure_residual=solve_info.residual,

@@ -121,6 +121,11 @@ def _open_checked(path: str | os.PathLike, mode: str = "r") -> h5py.File:
     return f
 
 
+def _module_fields(module: Any) -> dict:
+    """The array fields of an equinox Module, by name."""
+    return {f.name: getattr(module, f.name) for f in dataclasses.fields(module)}
+
+
 def _append(dataset: h5py.Dataset, values: np.ndarray) -> None:
     """Append `values` along axis 0 of a resizable dataset."""
     values = np.asarray(values, dtype=dataset.dtype)
@@ -193,7 +198,9 @@ class RunWriter:
         particles.create_dataset(
             "kind", data=np.asarray(case.state.kind).astype(np.int8)
         )
-        particles.create_dataset("body", data=np.full(n, -1, np.int32))
+        rigid = getattr(case.state, "rigid", None)
+        body = np.full(n, -1, np.int32) if rigid is None else np.asarray(rigid.body)
+        particles.create_dataset("body", data=body.astype(np.int32))
         f.create_group("frames")
         f.create_group("probes")
         f.flush()
@@ -237,6 +244,16 @@ class RunWriter:
             if name not in frames:
                 _resizable(frames, name, rows[name])
             _append(frames[name], rows[name])
+        bodies = getattr(frame_batch, "bodies", None)
+        if bodies:
+            group = self.file.require_group("bodies")
+            for name, values in bodies.items():
+                values = np.asarray(values)
+                if values.ndim == 2:  # a single frame
+                    values = values[None]
+                if name not in group:
+                    _resizable(group, name, values)
+                _append(group[name], values)
         self.file.flush()
         self.write_xdmf()
 
@@ -262,12 +279,19 @@ class RunWriter:
             if name == "result":
                 value = _result_value(value)
             group.create_dataset(name, data=np.asarray(value))
+        rigid = getattr(state, "rigid", None)
+        if rigid is not None:
+            sub = group.create_group("rigid")
+            for name, value in _module_fields(rigid).items():
+                sub.create_dataset(name, data=np.asarray(value))
         self.file.flush()
 
     def truncate(self, n_frames: int) -> None:
         """Keep only the first `n_frames` frames and probe rows (drop frames computed
         after the state a restart continues from)."""
-        for group in ("frames", "probes"):
+        for group in ("frames", "probes", "bodies"):
+            if group not in self.file:
+                continue
             for dataset in self.file[group].values():
                 if dataset.shape[0] > n_frames:
                     dataset.resize(n_frames, axis=0)
@@ -381,6 +405,7 @@ class RunData:
         frames: {"time", "step", "position", "velocity", "pressure", "active"}.
         probes: {"time": (m,), name: (m, ...)}.
         state: the last full state's fields ({} if none was written).
+        bodies: rigid-body fields per frame, {name: (t, b, ...)} ({} if none).
     """
 
     path: Path
@@ -390,6 +415,7 @@ class RunData:
     frames: dict
     probes: dict
     state: dict
+    bodies: dict = dataclasses.field(default_factory=dict)
 
 
 def _decode(value: Any) -> Any:
@@ -417,8 +443,15 @@ def read_run(path: str | os.PathLike) -> RunData:
         particles = {k: v[...] for k, v in f["particles"].items()}
         frames = {k: v[...] for k, v in f["frames"].items()}
         probes = {k: v[...] for k, v in f["probes"].items()}
-        state = {k: v[()] for k, v in f["state"].items()} if "state" in f else {}
-    return RunData(Path(path), attrs, config, particles, frames, probes, state)
+        state = {}
+        if "state" in f:
+            state = {
+                k: v[()] for k, v in f["state"].items() if isinstance(v, h5py.Dataset)
+            }
+        bodies = {k: v[...] for k, v in f["bodies"].items()} if "bodies" in f else {}
+    return RunData(
+        Path(path), attrs, config, particles, frames, probes, state, bodies
+    )
 
 
 def load_state(path: str | os.PathLike, case: Any):
@@ -445,6 +478,9 @@ def load_state(path: str | os.PathLike, case: Any):
         if missing:
             raise ValueError(f"'{path}': /state lacks {missing}.")
         values = {k: group[k][()] for k in STATE_FIELDS}
+        rigid_values = (
+            {k: v[()] for k, v in group["rigid"].items()} if "rigid" in group else None
+        )
     fields = {}
     for name in STATE_FIELDS[:-1]:
         like = getattr(case.state, name)
@@ -455,7 +491,30 @@ def load_state(path: str | os.PathLike, case: Any):
                 f"{tuple(like.shape)}: it is not a run of this case."
             )
         fields[name] = jnp.asarray(value, dtype=like.dtype)
-    return State(**fields, result=result_from_value(int(values["result"])))
+    rigid = None
+    like_rigid = getattr(case.state, "rigid", None)
+    if (like_rigid is None) != (rigid_values is None):
+        raise ValueError(
+            f"'{path}': the run {'has' if rigid_values else 'has no'} rigid bodies but "
+            f"the case {'has' if like_rigid is not None else 'has none'}: it is not a "
+            "run of this case."
+        )
+    if like_rigid is not None:
+        parts = {}
+        for name, like in _module_fields(like_rigid).items():
+            if name not in rigid_values:
+                raise ValueError(f"'{path}': /state/rigid lacks '{name}'.")
+            value = np.asarray(rigid_values[name])
+            if value.shape != like.shape:
+                raise ValueError(
+                    f"'{path}': /state/rigid/{name} has shape {value.shape} but the "
+                    f"case expects {tuple(like.shape)}: it is not a run of this case."
+                )
+            parts[name] = jnp.asarray(value, dtype=like.dtype)
+        rigid = type(like_rigid)(**parts)
+    return State(
+        **fields, result=result_from_value(int(values["result"])), rigid=rigid
+    )
 
 
 def write_run(

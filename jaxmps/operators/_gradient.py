@@ -21,8 +21,18 @@ class AbstractGradient(eqx.Module):
         n0: float,
         dim: int,
         include: Bool[Array, "n k"],
+        select: Bool[Array, "n k"] | None = None,
     ) -> Float[Array, "n d"]:
-        """<grad phi>_i over the neighbours j where `include` holds."""
+        """<grad phi>_i over the neighbours j where `include` holds.
+
+        With `select`, only the terms of the selected pairs are summed (the operator
+        itself, i.e. moment matrix and minimum, still comes from `include`): the part
+        of the gradient those neighbours contribute. Used to split contact forces.
+        """
+
+
+def _select(w, select):
+    return w if select is None else jnp.where(select, w, 0.0)
 
 
 def _unit_weighted(pairs: Pairs, field, include):
@@ -40,8 +50,9 @@ class StandardGradient(AbstractGradient):
     Exact for linear fields only on a full regular lattice neighbourhood.
     """
 
-    def __call__(self, pairs, field, n0, dim, include):
+    def __call__(self, pairs, field, n0, dim, include, select=None):
         w, e, diff = _unit_weighted(pairs, field, include)
+        w = _select(w, select)
         terms = (diff * w / pairs.distance)[..., None] * e
         return (dim / n0) * jnp.sum(terms, axis=1)
 
@@ -55,12 +66,12 @@ class MinimumPressureGradient(AbstractGradient):
     cost of first-order consistency (a uniform offset is no longer ignored exactly).
     """
 
-    def __call__(self, pairs, field, n0, dim, include):
+    def __call__(self, pairs, field, n0, dim, include, select=None):
         mask = jnp.logical_and(pairs.valid, include)
         phi_j = take_rows(field, pairs.index)
         phi_min = jnp.min(jnp.where(mask, phi_j, jnp.inf), axis=1)
         phi_hat = jnp.minimum(field, phi_min)
-        w = jnp.where(mask, pairs.weight, 0.0)
+        w = _select(jnp.where(mask, pairs.weight, 0.0), select)
         e = pairs.offset / pairs.distance[..., None]
         terms = ((phi_j - phi_hat[:, None]) * w / pairs.distance)[..., None] * e
         return (dim / n0) * jnp.sum(terms, axis=1)
@@ -96,7 +107,7 @@ class CorrectedGradient(AbstractGradient):
     # fields, which the shifted form is not).
     minimum_shift: bool = False
 
-    def __call__(self, pairs, field, n0, dim, include):
+    def __call__(self, pairs, field, n0, dim, include, select=None):
         w, e, diff = _unit_weighted(pairs, field, include)
         if self.minimum_shift:
             mask = jnp.logical_and(pairs.valid, include)
@@ -109,5 +120,6 @@ class CorrectedGradient(AbstractGradient):
         isotropic = jnp.eye(dim, dtype=moment.dtype) / dim
         safe_moment = jnp.where(ok[:, None, None], moment, isotropic)
         correction = jnp.linalg.inv(safe_moment)
+        w = _select(w, select)
         rhs = jnp.sum((diff * w / pairs.distance)[..., None] * e, axis=1) / n0
         return jnp.einsum("nab,nb->na", correction, rhs)

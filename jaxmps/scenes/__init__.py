@@ -1,5 +1,11 @@
 """Built-in scenes: `jaxmps.scenes.<name>(**overrides) -> Case`."""
 
+from ._bodies import BLOCK_IMPACT as _BLOCK_IMPACT
+from ._bodies import FLOATING_BOX as _FLOATING_BOX
+from ._bodies import FRICTION_TILT as _FRICTION_TILT
+from ._bodies import block_impact as block_impact
+from ._bodies import floating_box as floating_box
+from ._bodies import friction_tilt as friction_tilt
 from ._case import Case as Case
 from ._common import COMMON
 from ._dam_break import DEFAULTS as _DAM_BREAK
@@ -9,17 +15,22 @@ from ._flume import flume as flume
 from ._hydrostatic import DEFAULTS as _HYDROSTATIC
 from ._hydrostatic import hydrostatic as hydrostatic
 from ._probes import AbstractProbe as AbstractProbe
+from ._probes import BodyValue as BodyValue
 from ._probes import FluidPressureNear as FluidPressureNear
 from ._probes import FrontPosition as FrontPosition
 from ._probes import PressureAt as PressureAt
 from ._probes import StripLevel as StripLevel
+from ._probes import WallForce as WallForce
 from ._probes import WaterLevel as WaterLevel
 from ._probes import observe_probes as observe_probes
 from ._wave_tank import DEFAULTS as _WAVE_TANK
 from ._wave_tank import wave_tank as wave_tank
 
 _REGISTRY = {
+    "block_impact": (block_impact, _BLOCK_IMPACT),
+    "friction_tilt": (friction_tilt, _FRICTION_TILT),
     "dam_break": (dam_break, _DAM_BREAK),
+    "floating_box": (floating_box, _FLOATING_BOX),
     "flume": (flume, _FLUME),
     "hydrostatic": (hydrostatic, _HYDROSTATIC),
     "wave_tank": (wave_tank, _WAVE_TANK),
@@ -28,7 +39,7 @@ _REGISTRY = {
 
 def available() -> dict[str, dict]:
     """Scene names and their parameters with defaults (None: derived)."""
-    return {name: {**d, **COMMON} for name, (_, d) in sorted(_REGISTRY.items())}
+    return {name: {**COMMON, **d} for name, (_, d) in sorted(_REGISTRY.items())}
 
 
 def build(name: str, **overrides) -> Case:

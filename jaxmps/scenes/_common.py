@@ -35,7 +35,7 @@ SCHEMES = ("standard",)
 
 def resolve(name: str, specific: dict[str, Any], overrides: dict[str, Any]) -> dict:
     """Merge defaults and overrides; unknown names are an error listing valid ones."""
-    defaults = {**specific, **COMMON}
+    defaults = {**COMMON, **specific}  # a scene may change a common default
     unknown = sorted(set(overrides) - set(defaults))
     if unknown:
         raise ValueError(

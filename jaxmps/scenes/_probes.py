@@ -141,3 +141,65 @@ class StripLevel(AbstractProbe):
             weight = (inside > 0).astype(state.position.dtype)
         area = jnp.sum(jnp.where(fluid, weight, 0.0)) * self.spacing**2
         return area / self.width - self.still_depth
+
+
+class BodyValue(AbstractProbe):
+    """One component of a rigid body's state: `field` is "centre", "velocity",
+    "force" (gravity excluded), "contact_force", "friction" (component `axis`),
+    "angular_velocity", "torque" (2-D: about z; 3-D: component `axis`) or
+    "angle" (2-D: the rotation angle [rad]; 3-D: the tilt of the body's vertical
+    axis from its initial direction [rad])."""
+
+    name: str
+    body: int
+    field: str
+    axis: int = 0
+
+    def __check_init__(self):
+        fields = (
+            "centre",
+            "velocity",
+            "force",
+            "contact_force",
+            "friction",
+            "angular_velocity",
+            "torque",
+            "angle",
+        )
+        if self.field not in fields:
+            raise ValueError(f"BodyValue.field must be one of {fields}.")
+
+    def __call__(self, scene, state):
+        rigid = state.rigid
+        if self.field == "angle":
+            q = rigid.orientation[self.body]
+            if scene.dim == 2:
+                return q[0]
+            # cos(tilt) = R_zz = 1 - 2 (x^2 + y^2)
+            c = 1.0 - 2.0 * (q[1] ** 2 + q[2] ** 2)
+            return jnp.arccos(jnp.clip(c, -1.0, 1.0))
+        value = getattr(rigid, self.field)[self.body]
+        return value[self.axis]
+
+
+class WallForce(AbstractProbe):
+    """Pressure force [N, or N/m in 2-D] on the pressure-wall particles inside the box
+    [`lower`, `upper`]: the sum of P_i l0^(d-1) (seed 000: the collision force is the
+    wall pressure integrated over the contact face). Positive into the wall."""
+
+    name: str
+    lower: tuple[float, ...]
+    upper: tuple[float, ...]
+    spacing: float
+
+    def __call__(self, scene, state):
+        del scene
+        x = state.position
+        inside = jnp.all(
+            (x >= jnp.asarray(self.lower, x.dtype))
+            & (x <= jnp.asarray(self.upper, x.dtype)),
+            axis=-1,
+        )
+        wall = state.active & (state.kind == int(Kind.WALL)) & inside
+        area = self.spacing ** (x.shape[-1] - 1)
+        return jnp.sum(jnp.where(wall, state.pressure, 0.0)) * area
