@@ -307,7 +307,7 @@ def add_rigid_bodies(
         spin = np.asarray(rot.cross(jnp.asarray(arm), jnp.asarray(v))).sum(axis=0)
         w_body[b] = np.linalg.solve(np.atleast_2d(inertia), np.atleast_1d(spin))
         velocity[members] = v_body[b] + np.asarray(
-            rot.spin_cross(jnp.asarray(w_body[b]), jnp.asarray(arm))
+            rot.spin_cross(jnp.asarray(w_body[b])[None], jnp.asarray(arm))
         )
         kind[members] = 3  # Kind.RIGID
         # Overlaps: other bodies and walls/fluid closer than half a spacing.

@@ -14,7 +14,6 @@ from ._scene import Scene
 from ._state import State
 from ._step import _step, check_compatible
 
-
 # Rigid-body fields saved with each frame (the run file's /bodies group).
 BODY_FIELDS = (
     "centre",

@@ -27,7 +27,7 @@ def identity(dim: int, count: int, dtype) -> Float[Array, "b q"]:
     return jnp.zeros((count, 4), dtype).at[:, 0].set(1.0)
 
 
-def quaternion_multiply(p: Float[Array, "*b 4"], q: Float[Array, "*b 4"]):
+def quaternion_multiply(p: Float[Array, "*#b 4"], q: Float[Array, "*#b 4"]):
     """Hamilton product p q: scalar part p_w q_w - p_v . q_v (the digest's erratum)."""
     pw, pv = p[..., :1], p[..., 1:]
     qw, qv = q[..., :1], q[..., 1:]
@@ -37,8 +37,8 @@ def quaternion_multiply(p: Float[Array, "*b 4"], q: Float[Array, "*b 4"]):
 
 
 def quaternion_from_rotation_vector(
-    theta: Float[Array, "*b 3"],
-) -> Float[Array, "*b 4"]:
+    theta: Float[Array, "*#b 3"],
+) -> Float[Array, "*#b 4"]:
     """The unit quaternion of a rotation by |theta| about theta/|theta| (Rodrigues).
 
     Finite value and gradient at theta = 0 (the identity).
@@ -50,7 +50,7 @@ def quaternion_from_rotation_vector(
     return jnp.concatenate([jnp.cos(half)[..., None], scale[..., None] * theta], -1)
 
 
-def matrix(orientation: Float[Array, "*b q"], dim: int) -> Float[Array, "*b d d"]:
+def matrix(orientation: Float[Array, "*#b q"], dim: int) -> Float[Array, "*#b d d"]:
     """Rotation matrix of an orientation (angle in 2-D, unit quaternion in 3-D)."""
     if dim == 2:
         a = orientation[..., 0]
@@ -65,7 +65,7 @@ def matrix(orientation: Float[Array, "*b q"], dim: int) -> Float[Array, "*b d d"
     return jnp.stack([jnp.stack(r, -1) for r in rows], -2)
 
 
-def rotate(orientation: Float[Array, "*b q"], increment: Float[Array, "*b a"], dim):
+def rotate(orientation: Float[Array, "*#b q"], increment: Float[Array, "*#b a"], dim):
     """Orientation after a further rotation by the rotation vector `increment`
     (applied in the world frame, i.e. R_new = R(increment) R_old)."""
     if dim == 2:
@@ -74,14 +74,14 @@ def rotate(orientation: Float[Array, "*b q"], increment: Float[Array, "*b a"], d
     return q / jnp.linalg.norm(q, axis=-1, keepdims=True)
 
 
-def cross(a: Float[Array, "*b d"], b: Float[Array, "*b d"]) -> Float[Array, "*b a"]:
+def cross(a: Float[Array, "*#b d"], b: Float[Array, "*#b d"]) -> Float[Array, "*#b a"]:
     """a x b: the z component (shape (..., 1)) in 2-D, the vector in 3-D."""
     if a.shape[-1] == 2:
         return (a[..., :1] * b[..., 1:2]) - (a[..., 1:2] * b[..., :1])
     return jnp.cross(a, b)
 
 
-def spin_cross(omega: Float[Array, "*b a"], r: Float[Array, "*b d"]):
+def spin_cross(omega: Float[Array, "*#b a"], r: Float[Array, "*#b d"]):
     """omega x r for an angular vector omega (one z component in 2-D)."""
     if r.shape[-1] == 2:
         return omega * jnp.concatenate([-r[..., 1:2], r[..., :1]], axis=-1)
@@ -94,5 +94,5 @@ def inertia_of(offsets: Float[Array, "*n d"]) -> Float[Array, "*n a a"]:
     sq = jnp.sum(offsets**2, axis=-1)
     if offsets.shape[-1] == 2:
         return sq[..., None, None]
-    eye = jnp.eye(3, dtype=offsets.dtype)
+    eye = jnp.eye(3, dtype=offsets.dtype).reshape((1,) * sq.ndim + (3, 3))
     return sq[..., None, None] * eye - offsets[..., :, None] * offsets[..., None, :]

@@ -449,9 +449,7 @@ def read_run(path: str | os.PathLike) -> RunData:
                 k: v[()] for k, v in f["state"].items() if isinstance(v, h5py.Dataset)
             }
         bodies = {k: v[...] for k, v in f["bodies"].items()} if "bodies" in f else {}
-    return RunData(
-        Path(path), attrs, config, particles, frames, probes, state, bodies
-    )
+    return RunData(Path(path), attrs, config, particles, frames, probes, state, bodies)
 
 
 def load_state(path: str | os.PathLike, case: Any):
@@ -512,9 +510,7 @@ def load_state(path: str | os.PathLike, case: Any):
                 )
             parts[name] = jnp.asarray(value, dtype=like.dtype)
         rigid = type(like_rigid)(**parts)
-    return State(
-        **fields, result=result_from_value(int(values["result"])), rigid=rigid
-    )
+    return State(**fields, result=result_from_value(int(values["result"])), rigid=rigid)
 
 
 def write_run(

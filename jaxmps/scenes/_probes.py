@@ -195,11 +195,9 @@ class WallForce(AbstractProbe):
     def __call__(self, scene, state):
         del scene
         x = state.position
-        inside = jnp.all(
-            (x >= jnp.asarray(self.lower, x.dtype))
-            & (x <= jnp.asarray(self.upper, x.dtype)),
-            axis=-1,
-        )
+        lower = jnp.asarray(self.lower, x.dtype)[None, :]
+        upper = jnp.asarray(self.upper, x.dtype)[None, :]
+        inside = jnp.all((x >= lower) & (x <= upper), axis=-1)
         wall = state.active & (state.kind == int(Kind.WALL)) & inside
         area = self.spacing ** (x.shape[-1] - 1)
         return jnp.sum(jnp.where(wall, state.pressure, 0.0)) * area
