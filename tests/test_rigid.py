@@ -201,3 +201,20 @@ def test_scene_without_bodies_compiles_no_body_code():
     assert "fluid" in scopes(fluid)
     assert "rigid" not in scopes(fluid)
     assert "rigid" in scopes(body)
+
+
+def test_body_scenes_build_and_list():
+    """Every body scene is listed, builds, and takes a few steps; a scene may change
+    a common default (block_impact has no gravity); unknown parameters are refused."""
+    names = jaxmps.scenes.available()
+    for name in ("floating_box", "friction_tilt", "block_impact", "dam_break_box"):
+        assert name in names
+    assert names["block_impact"]["gravity"] == 0.0
+    case = jaxmps.scenes.build("dam_break_box", spacing=0.0146)
+    assert int(case.scene.rigid.count) == 1
+    out = jaxmps.simulate(case.scene, case.params, case.state, 10, 10)
+    assert out.result == jaxmps.Result.successful
+    with pytest.raises(ValueError, match="Unknown parameter"):
+        jaxmps.scenes.build("floating_box", box_widht=0.1)
+    with pytest.raises(ValueError, match="density_ratio"):
+        jaxmps.scenes.floating_box(density_ratio=-1.0)

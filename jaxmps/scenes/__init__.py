@@ -1,9 +1,11 @@
 """Built-in scenes: `jaxmps.scenes.<name>(**overrides) -> Case`."""
 
 from ._bodies import BLOCK_IMPACT as _BLOCK_IMPACT
+from ._bodies import DAM_BREAK_BOX as _DAM_BREAK_BOX
 from ._bodies import FLOATING_BOX as _FLOATING_BOX
 from ._bodies import FRICTION_TILT as _FRICTION_TILT
 from ._bodies import block_impact as block_impact
+from ._bodies import dam_break_box as dam_break_box
 from ._bodies import floating_box as floating_box
 from ._bodies import friction_tilt as friction_tilt
 from ._case import Case as Case
@@ -30,6 +32,7 @@ _REGISTRY = {
     "block_impact": (block_impact, _BLOCK_IMPACT),
     "friction_tilt": (friction_tilt, _FRICTION_TILT),
     "dam_break": (dam_break, _DAM_BREAK),
+    "dam_break_box": (dam_break_box, _DAM_BREAK_BOX),
     "floating_box": (floating_box, _FLOATING_BOX),
     "flume": (flume, _FLUME),
     "hydrostatic": (hydrostatic, _HYDROSTATIC),

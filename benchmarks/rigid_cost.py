@@ -1,0 +1,117 @@
+"""Cost of the rigid-body component as a fraction of step time.
+
+The same particles are run twice per scene: with the box as a rigid body, and with
+the rigid component removed (the box's particles become fluid, so the step program
+has no body code). Compile time and run time are reported separately; run times are
+the second of two identical calls, median of three repeats.
+
+Run: python benchmarks/rigid_cost.py  (writes results/rigid_cost_cpu.{json,md})
+"""
+
+import dataclasses
+import json
+import pathlib
+import statistics
+import time
+
+import jax
+import jax.numpy as jnp
+from _common import loadavg, machine_info
+
+import jaxmps
+
+HERE = pathlib.Path(__file__).parent
+
+
+def without_bodies(case):
+    """The case with its bodies turned into plain fluid (same particles)."""
+    kind = jnp.where(case.state.kind == int(jaxmps.Kind.RIGID), 0, case.state.kind)
+    return (
+        dataclasses.replace(case.scene, rigid=None),
+        dataclasses.replace(case.params, rigid=None),
+        dataclasses.replace(case.state, kind=kind, rigid=None),
+    )
+
+
+def measure(scene, params, state, n_steps):
+    t0 = time.perf_counter()
+    compiled = jaxmps.simulate.lower(
+        scene, params, state, n_steps, n_steps, throw=False
+    ).compile()
+    compile_s = time.perf_counter() - t0
+
+    def call():
+        return jax.block_until_ready(
+            jaxmps.simulate(scene, params, state, n_steps, n_steps, throw=False).state
+        )
+
+    call()
+    runs = []
+    for _ in range(3):
+        t0 = time.perf_counter()
+        call()
+        runs.append(time.perf_counter() - t0)
+    del compiled
+    return compile_s, statistics.median(runs)
+
+
+def main():
+    rows = []
+    cases = {
+        "floating_box": jaxmps.scenes.floating_box(),
+        "block_impact": jaxmps.scenes.block_impact(),
+        "friction_tilt": jaxmps.scenes.friction_tilt(settle=0.0),
+    }
+    n_steps = 200
+    for name, case in cases.items():
+        n = int(case.state.active.sum())
+        c_body, r_body = measure(case.scene, case.params, case.state, n_steps)
+        c_free, r_free = measure(*without_bodies(case), n_steps)
+        rows.append(
+            dict(
+                scene=name,
+                particles=n,
+                body_particles=int((case.state.rigid.body >= 0).sum()),
+                steps=n_steps,
+                compile_with_bodies_s=c_body,
+                compile_without_s=c_free,
+                run_with_bodies_s=r_body,
+                run_without_s=r_free,
+                rigid_fraction_of_step=(r_body - r_free) / r_body,
+                particle_steps_per_s=n * n_steps / r_body,
+            )
+        )
+        print(rows[-1])
+    info = machine_info()
+    info["loadavg_1min_end"] = loadavg()
+    out = HERE / "results" / "rigid_cost_cpu.json"
+    out.write_text(json.dumps(dict(machine=info, rows=rows), indent=2))
+    lines = [
+        "# Rigid-body component: cost as a fraction of step time (CPU)",
+        "",
+        f"{info['cpu_model']}, {info['cpu_usable']} cores, jax {info['jax']}, "
+        f"{info['dtype']}; {n_steps} steps, run time median of 3 (second calls).",
+        "",
+        "| scene | particles | body particles | compile with / without [s] | "
+        "run with / without [s] | rigid share of step | particle-steps/s |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for r in rows:
+        lines.append(
+            f"| {r['scene']} | {r['particles']} | {r['body_particles']} | "
+            f"{r['compile_with_bodies_s']:.1f} / {r['compile_without_s']:.1f} | "
+            f"{r['run_with_bodies_s']:.3f} / {r['run_without_s']:.3f} | "
+            f"{100 * r['rigid_fraction_of_step']:.1f} % | "
+            f"{r['particle_steps_per_s']:.3g} |"
+        )
+    lines += [
+        "",
+        "A scene without bodies compiles no body code at all (no `rigid` stage in "
+        "its program; see tests/test_rigid.py, "
+        "test_scene_without_bodies_compiles_no_body_code).",
+    ]
+    (HERE / "results" / "rigid_cost_cpu.md").write_text("\n".join(lines) + "\n")
+
+
+if __name__ == "__main__":
+    main()
