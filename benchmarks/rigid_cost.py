@@ -36,7 +36,7 @@ def without_bodies(case):
 def measure(scene, params, state, n_steps):
     t0 = time.perf_counter()
     compiled = jaxmps.simulate.lower(
-        scene, params, state, n_steps, n_steps, throw=False
+        scene, params, state, n_steps, n_steps, jaxmps.frame, throw=False
     ).compile()
     compile_s = time.perf_counter() - t0
 
