@@ -81,6 +81,7 @@ class Explicit(AbstractSolver):
             state.kind,
             state.active,
             without_internal_pairs(state, pairs_k),
+            None if state.rigid is None else particle_density(params, state),
         )
         x_star = jnp.where(
             mobile[:, None], state.position + dt * u_star, state.position

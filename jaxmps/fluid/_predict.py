@@ -11,16 +11,30 @@ from ..operators import Pairs, laplacian, make_pairs
 
 
 def predict_velocity(
-    scene, params: Params, velocity: Float[Array, "n d"], kind, active, pairs: Pairs
+    scene,
+    params: Params,
+    velocity: Float[Array, "n d"],
+    kind,
+    active,
+    pairs: Pairs,
+    density=None,
 ) -> Float[Array, "n d"]:
     """u* = u^k + dt (nu <lap u>^k + g) for mobile particles (eq. 2.2-3).
 
     Walls and dummies enter the Laplacian with their own (prescribed) velocity, which
     makes walls no-slip for the viscous term. # Choice: the seed says free-slip but does
     not say how; standard MPS includes wall particles in the viscous Laplacian.
+
+    With `density` (per particle; bodies heavier or lighter than the fluid) the
+    viscous force rho0 nu <lap u> acts on a particle of mass density rho_i, so its
+    acceleration is (rho0 / rho_i) nu <lap u>: the pair forces then stay equal and
+    opposite between a body and the fluid.
     """
     lap_u = laplacian(pairs, velocity, scene.n0, scene.lam, scene.dim)
-    accel = params.viscosity * lap_u + params.gravity[None, :]
+    viscous = params.viscosity * lap_u
+    if density is not None:
+        viscous = viscous * jnp.reshape(params.density / density, (-1, 1))
+    accel = viscous + params.gravity[None, :]
     mobile = jnp.logical_and(active, is_kind(kind, MOBILE_KINDS))
     return jnp.where(mobile[:, None], velocity + params.dt * accel, velocity)
 

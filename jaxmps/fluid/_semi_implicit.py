@@ -94,6 +94,7 @@ class SemiImplicit(AbstractSolver):
             state.kind,
             state.active,
             without_internal_pairs(state, pairs_k),
+            None if state.rigid is None else particle_density(params, state),
         )
         u_star = collide(
             u_star,
