@@ -7,6 +7,10 @@ Discrete decisions carry no gradient and are documented here:
 - inflow spawning: *when* a column spawns is discrete; between spawns the gradient
   w.r.t. the inflow velocity flows through the moving boundary. The rollouts below
   stay between two spawns.
+- stick/slip (rigid friction): whether a body sticks is a step function of mu_s,
+  so d/d(mu_s) is exactly zero; mu_k has a gradient while the body slides (the
+  removed speed mu_k N dt / M is linear in it) and none while it sticks
+  (`Coulomb(smoothing=...)` gives one in both regimes).
 - kinks: the negative-pressure clamp max(p, 0), the minimum-pressure shift and the
   collision guard are continuous but not smooth. A finite-difference step can
   straddle one (seen for inflow.velocity at h = 1e-4 |x|: forward and backward
@@ -71,8 +75,36 @@ def _flume():
     return case.scene, case.params, case.state
 
 
+def _floating():
+    case = jaxmps.scenes.floating_box(
+        spacing=0.02,
+        tank_length=0.4,
+        depth=0.1,
+        box_width=0.1,
+        box_height=0.06,
+        rtol=1e-13,
+        max_iterations=5000,
+        viscosity=1e-2,
+    )
+    return case.scene, case.params, case.state
+
+
+def _sliding():
+    case = jaxmps.scenes.friction_tilt(
+        spacing=0.2,
+        floor_length=2.0,
+        settle=0.1,
+        angle=45.0,
+        rtol=1e-13,
+        max_iterations=5000,
+    )
+    return case.scene, case.params, case.state
+
+
 SEMI = jaxmps.SemiImplicit(rtol=1e-13, max_iterations=5000)
 CASES = {
+    "floating": _floating,
+    "sliding": _sliding,
     "semi": lambda: _tank(SEMI),
     "explicit": lambda: _tank(jaxmps.Explicit()),
     "moving": _moving_tank,
@@ -91,12 +123,17 @@ FIELDS = [
     ("moving", "motion.amplitude"),
     ("moving", "motion.frequency"),
     ("flume", "inflow.velocity"),
+    ("floating", "rigid.density"),
+    ("floating", "density"),
+    ("sliding", "rigid.mu_kinetic"),
+    ("sliding", "rigid.density"),
+    ("sliding", "gravity"),
 ]
 
 
 def _loss(scene, params, state, n_steps=6):
     final = jaxmps.simulate(scene, params, state, n_steps, 3, throw=False).state
-    fluid = final.active & (final.kind == 0)
+    fluid = final.active & ((final.kind == 0) | (final.kind == int(jaxmps.Kind.RIGID)))
     return jnp.sum(jnp.where(fluid, final.pressure, 0.0)) * 1e-3 + jnp.sum(
         jnp.where(fluid[:, None], final.position, 0.0) ** 2
     )
@@ -126,3 +163,10 @@ def test_beta_gradient_is_exactly_zero_and_so_is_the_difference():
     up = _loss(scene, set_field(params, "beta", params.beta + 1e-6), state)
     down = _loss(scene, set_field(params, "beta", params.beta - 1e-6), state)
     assert float(up) == float(down)
+
+
+def test_static_friction_gradient_is_exactly_zero_while_sliding():
+    scene, params, state = _sliding()
+    g = jax.grad(lambda p: _loss(scene, p, state))(params)
+    assert float(jnp.abs(g.rigid.mu_static).max()) == 0.0
+    assert float(jnp.abs(g.rigid.mu_kinetic).max()) > 0.0

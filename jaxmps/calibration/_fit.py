@@ -168,6 +168,13 @@ class CalibrationResult(eqx.Module):
         plt.close(fig)
 
 
+def _plain(x):
+    """A float for a one-element array (e.g. a per-body field of one body), else a
+    list."""
+    arr = np.asarray(x)
+    return float(arr.reshape(())) if arr.size == 1 else arr.tolist()
+
+
 def calibrate(
     case,
     fields: dict[str, AbstractTransform | None],
@@ -214,7 +221,8 @@ def calibrate(
     params = case.params
     for name, value in (initial or {}).items():
         base = get_field(params, name)
-        params = set_field(params, name, jnp.asarray(value, base.dtype))
+        value = jnp.broadcast_to(jnp.asarray(value, base.dtype), base.shape)
+        params = set_field(params, name, value)
     for name in transforms:
         get_field(params, name)
     observe = observe_probes(case.probes)
@@ -258,7 +266,7 @@ def calibrate(
         if float(loss) < best[0]:
             best = (float(loss), u, it)
         for name, t in transforms.items():
-            history[name].append(float(t.forward(u[name])))
+            history[name].append(_plain(t.forward(u[name])))
         if bar is not None:
             bar.update(1)
             bar.set_postfix(loss=f"{float(loss):.3g}")
@@ -278,7 +286,7 @@ def calibrate(
     fitted = with_values(best[1])
     return CalibrationResult(
         fields=tuple(transforms),
-        values={name: float(get_field(fitted, name)) for name in transforms},
+        values={name: _plain(get_field(fitted, name)) for name in transforms},
         best_loss=best[0],
         best_iteration=best[2],
         history=history,
