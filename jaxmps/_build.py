@@ -349,6 +349,8 @@ def add_rigid_bodies(
         force=zeros_b,
         torque=jnp.zeros_like(jnp.asarray(w_body, fdtype)),
         contact_force=zeros_b,
+        impulse=zeros_b,
+        angular_impulse=jnp.zeros_like(jnp.asarray(w_body, fdtype)),
         friction=zeros_b,
         sliding=jnp.zeros((count,), bool),
         particle_contact=jnp.zeros((n, dim), fdtype),

@@ -24,6 +24,7 @@ BODY_FIELDS = (
     "torque",
     "contact_force",
     "friction",
+    "impulse",
 )
 
 

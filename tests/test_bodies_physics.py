@@ -141,6 +141,7 @@ def test_block_impact_impulse_within_momentum_bounds():
     wall = np.sum(s["wall_force"]) * dt
     mass = case.config["density"] * case.config["block_size"] ** 2
     body = mass * (s["block_velocity_y"][-1] + 1.0)
+    np.testing.assert_allclose(s["block_impulse_y"][-1], body, rtol=1e-9)
     for impulse in (wall, body):
         assert 6.25e3 * (1 - 1e-9) <= impulse <= 12.5e3, impulse
     assert s["block_y"].min() > 0.5 * case.config["block_size"] - 0.5 * 0.1

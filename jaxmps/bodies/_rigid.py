@@ -217,6 +217,8 @@ def advance_bodies(scene, params, state) -> "State":  # noqa: F821
     position = centre[index] + arm
     particle_velocity = velocity[index] + rot.spin_cross(omega[index], arm)
     old_momentum_l = jnp.einsum("bij,bj->bi", inertia_k, rs.angular_velocity)
+    force = mass[:, None] * ((velocity - rs.velocity) / dt - params.gravity[None, :])
+    torque = (momentum_l - old_momentum_l) / dt
     new_rigid = eqx.tree_at(
         lambda r: (
             r.centre,
@@ -226,6 +228,8 @@ def advance_bodies(scene, params, state) -> "State":  # noqa: F821
             r.force,
             r.torque,
             r.contact_force,
+            r.impulse,
+            r.angular_impulse,
             r.friction,
             r.sliding,
         ),
@@ -235,9 +239,11 @@ def advance_bodies(scene, params, state) -> "State":  # noqa: F821
             orientation,
             velocity,
             omega,
-            mass[:, None] * ((velocity - rs.velocity) / dt - params.gravity[None, :]),
-            (momentum_l - old_momentum_l) / dt,
+            force,
+            torque,
             contact_force,
+            rs.impulse + dt * force,
+            rs.angular_impulse + dt * torque,
             friction,
             sliding,
         ),

@@ -23,6 +23,8 @@ class RigidState(eqx.Module):
         torque: torque about the centre in the last step [N m], shape (b, a).
         contact_force: part of `force` exerted through pressure by walls and other
             bodies (the contact reaction), shape (b, d).
+        impulse: time integral of `force` since the start [N s], shape (b, d).
+        angular_impulse: time integral of `torque` since the start, shape (b, a).
         friction: friction force of the last step, shape (b, d).
         sliding: whether the body was in contact and sliding in the last step, (b,).
         particle_contact: per particle, the pressure force from contact partners in
@@ -40,6 +42,8 @@ class RigidState(eqx.Module):
     force: Float[Array, "b d"]
     torque: Float[Array, "b a"]
     contact_force: Float[Array, "b d"]
+    impulse: Float[Array, "b d"]
+    angular_impulse: Float[Array, "b a"]
     friction: Float[Array, "b d"]
     sliding: Bool[Array, " b"]
     particle_contact: Float[Array, "n d"]

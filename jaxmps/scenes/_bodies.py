@@ -305,7 +305,8 @@ def block_impact(**overrides) -> Case:
     face (probe `wall_force`, N/m in 2-D); its time integral is the impulse, which
     lies between rho A v (plastic) and 2 rho A v (elastic rebound).
 
-    Probes: `wall_force`, `block_y`, `block_velocity_y`, `block_force_y`.
+    Probes: `wall_force`, `block_y`, `block_velocity_y`, `block_force_y`,
+    `block_impulse_y` (time integral of the force on the block).
     """
     c = resolve("block_impact", BLOCK_IMPACT, overrides)
     l0, dim = c["spacing"], int(c["dim"])
@@ -356,6 +357,7 @@ def block_impact(**overrides) -> Case:
         BodyValue("block_y", 0, "centre", dim - 1),
         BodyValue("block_velocity_y", 0, "velocity", dim - 1),
         BodyValue("block_force_y", 0, "force", dim - 1),
+        BodyValue("block_impulse_y", 0, "impulse", dim - 1),
     )
     config = {**c, "block_size": a, "gap": gap}
     return Case("block_impact", scene, params, state, probes, float(c["t_end"]), config)
@@ -388,7 +390,8 @@ def dam_break_box(**overrides) -> Case:
     with the floor and walls uses `mu_static` / `mu_kinetic`.
 
     Probes: `front`, `box_x`, `box_y`, `box_velocity_x`, `box_force_x` (fluid and
-    contact force, gravity excluded), `right_wall_force` (pressure on the right wall).
+    contact force, gravity excluded), `box_impulse_x` (its time integral),
+    `right_wall_force` (pressure on the right wall).
 
     The default `courant` is 0.02 (the box reaches the wall at ~0.27 s at 2.4 m/s;
     rigid contact needs small steps) and `t_end` 0.35 s: after that the run-up jet
@@ -425,6 +428,7 @@ def dam_break_box(**overrides) -> Case:
         BodyValue("box_y", 0, "centre", 1),
         BodyValue("box_velocity_x", 0, "velocity", 0),
         BodyValue("box_force_x", 0, "force", 0),
+        BodyValue("box_impulse_x", 0, "impulse", 0),
         WallForce("right_wall_force", (length, 0.0), (length + l0, height), l0),
     )
     config = {**c, "box_width": bw, "box_height": bh, "box_x": x0}

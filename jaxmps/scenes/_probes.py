@@ -145,8 +145,9 @@ class StripLevel(AbstractProbe):
 
 class BodyValue(AbstractProbe):
     """One component of a rigid body's state: `field` is "centre", "velocity",
-    "force" (gravity excluded), "contact_force", "friction" (component `axis`),
-    "angular_velocity", "torque" (2-D: about z; 3-D: component `axis`) or
+    "force" (gravity excluded), "contact_force", "friction", "impulse" (time
+    integral of "force"; component `axis`), "angular_velocity", "torque",
+    "angular_impulse" (2-D: about z; 3-D: component `axis`) or
     "angle" (2-D: the rotation angle [rad]; 3-D: the tilt of the body's vertical
     axis from its initial direction [rad])."""
 
@@ -162,8 +163,10 @@ class BodyValue(AbstractProbe):
             "force",
             "contact_force",
             "friction",
+            "impulse",
             "angular_velocity",
             "torque",
+            "angular_impulse",
             "angle",
         )
         if self.field not in fields:
@@ -185,7 +188,10 @@ class BodyValue(AbstractProbe):
 class WallForce(AbstractProbe):
     """Pressure force [N, or N/m in 2-D] on the pressure-wall particles inside the box
     [`lower`, `upper`]: the sum of P_i l0^(d-1) (seed 000: the collision force is the
-    wall pressure integrated over the contact face). Positive into the wall."""
+    wall pressure integrated over the contact face). Positive into the wall. A probe
+    is a function of one state: the impulse on the segment is the time integral of
+    the saved history (save every step for impacts, as `block_impact`'s test does).
+    """
 
     name: str
     lower: tuple[float, ...]
