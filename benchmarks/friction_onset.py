@@ -1,0 +1,108 @@
+"""Friction onset and sliding accuracy of the rigid-body Coulomb law, 2-D and 3-D.
+
+For each mu, gravity is tilted to tan(theta) = r mu for several ratios r, all as one
+vmapped batch (`jaxmps.sweep`); the block is declared sliding when it moved more than
+1 mm in 1 s. The onset then lies between the largest sticking and the smallest
+sliding ratio. The sliding distance is compared with g (sin - mu cos) T^2 / 2.
+
+2-D: 1 m block, l0 = 0.1 m, mu = 0.2, 0.4, 0.6, 0.8, r = 0.97, 0.99, 1.01, 1.03, 2.
+3-D: 1 m cube, l0 = 0.2 m, mu = 0.5, r = 0.9, 0.95, 1.05, 1.5, 2.
+
+Run: python benchmarks/friction_onset.py  (writes results/friction_onset_cpu.{json,md})
+"""
+
+import json
+import pathlib
+import time
+
+import jax
+import numpy as np
+from _common import machine_info
+
+import jaxmps
+
+HERE = pathlib.Path(__file__).parent
+G, T = 9.81, 1.0
+
+
+def run(dim, mus, ratios, **overrides):
+    case = jaxmps.scenes.friction_tilt(dim=dim, **overrides)
+    mu = np.repeat(mus, len(ratios))
+    ratio = np.tile(ratios, len(mus))
+    theta = np.arctan(ratio * mu)
+    gravity = np.zeros((len(mu), dim))
+    gravity[:, 0], gravity[:, -1] = G * np.sin(theta), -G * np.cos(theta)
+    n = round(T / float(case.params.dt))
+    start = time.perf_counter()
+    res = jaxmps.sweep(
+        case,
+        {
+            "gravity": gravity,
+            "rigid.mu_static": mu[:, None],
+            "rigid.mu_kinetic": mu[:, None],
+        },
+        n_steps=n,
+        save_every=n // 10,
+    )
+    wall = time.perf_counter() - start
+    dx = np.asarray(res.saved["block_x"])[:, -1] - float(case.state.rigid.centre[0, 0])
+    theory = np.maximum(G * (np.sin(theta) - mu * np.cos(theta)), 0) * T**2 / 2
+    rows = [
+        dict(
+            dim=dim,
+            mu=float(m),
+            ratio=float(r),
+            distance=float(d),
+            theory=float(t),
+            result=int(c),
+        )
+        for m, r, d, t, c in zip(mu, ratio, dx, theory, np.asarray(res.result))
+    ]
+    return rows, wall
+
+
+def main():
+    jax.config.update("jax_enable_x64", True)
+    rows2, wall2 = run(
+        2, np.array([0.2, 0.4, 0.6, 0.8]), np.array([0.97, 0.99, 1.01, 1.03, 2.0])
+    )
+    rows3, wall3 = run(
+        3,
+        np.array([0.5]),
+        np.array([0.9, 0.95, 1.05, 1.5, 2.0]),
+        spacing=0.2,
+        floor_length=3.0,
+    )
+    rows = rows2 + rows3
+    out = dict(machine=machine_info(), rows=rows, wall_2d_s=wall2, wall_3d_s=wall3)
+    (HERE / "results" / "friction_onset_cpu.json").write_text(json.dumps(out, indent=1))
+    lines = [
+        "# Friction onset and sliding distance (float64, CPU)",
+        "",
+        "| dim | mu | tan(theta)/mu | distance in 1 s [m] | theory [m] | state |",
+        "|---|---|---|---|---|---|",
+    ]
+    for r in rows:
+        state = "slides" if r["distance"] > 1e-3 else "sticks"
+        lines.append(
+            f"| {r['dim']} | {r['mu']} | {r['ratio']} | {r['distance']:.4f} | "
+            f"{r['theory']:.4f} | {state} |"
+        )
+    lines.append("")
+    for dim, group in ((2, rows2), (3, rows3)):
+        for mu in sorted({r["mu"] for r in group}):
+            sub = [r for r in group if r["mu"] == mu]
+            stick = max(
+                [r["ratio"] for r in sub if r["distance"] <= 1e-3], default=None
+            )
+            slide = min([r["ratio"] for r in sub if r["distance"] > 1e-3], default=None)
+            lines.append(
+                f"- {dim}-D, mu = {mu}: onset between tan(theta)/mu = {stick} "
+                f"(sticks) and {slide} (slides)"
+            )
+    (HERE / "results" / "friction_onset_cpu.md").write_text("\n".join(lines) + "\n")
+    print("\n".join(lines))
+
+
+if __name__ == "__main__":
+    main()
