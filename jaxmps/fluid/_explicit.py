@@ -12,7 +12,6 @@ from ..bodies import (
     contact_partners,
     particle_density,
     with_contact,
-    without_internal_pairs,
 )
 from ..operators import (
     AbstractWeight,
@@ -20,7 +19,7 @@ from ..operators import (
     number_density,
     reference_constants,
 )
-from ._predict import is_mobile, neighbour_pairs, predict_velocity
+from ._predict import is_mobile, neighbour_pairs, predict_state_velocity
 from ._semi_implicit import AbstractSolver
 
 
@@ -74,15 +73,7 @@ class Explicit(AbstractSolver):
         dt = params.dt
         mobile = is_mobile(state.kind, state.active)
         nbrs_k, pairs_k = neighbour_pairs(scene, state.position, state.active)
-        u_star = predict_velocity(
-            scene,
-            params,
-            state.velocity,
-            state.kind,
-            state.active,
-            without_internal_pairs(state, pairs_k),
-            None if state.rigid is None else particle_density(params, state),
-        )
+        u_star = predict_state_velocity(scene, params, state, pairs_k)
         x_star = jnp.where(
             mobile[:, None], state.position + dt * u_star, state.position
         )

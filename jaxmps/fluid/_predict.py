@@ -7,6 +7,7 @@ from .. import neighbours
 from .._numerics import take_rows
 from .._params import Params
 from .._types import MOBILE_KINDS, is_kind
+from ..bodies import particle_density, without_internal_pairs
 from ..operators import Pairs, laplacian, make_pairs
 
 
@@ -37,6 +38,24 @@ def predict_velocity(
     accel = viscous + params.gravity[None, :]
     mobile = jnp.logical_and(active, is_kind(kind, MOBILE_KINDS))
     return jnp.where(mobile[:, None], velocity + params.dt * accel, velocity)
+
+
+def predict_state_velocity(scene, params: Params, state, pairs: Pairs):
+    """`predict_velocity` for a State: in scenes with rigid bodies, pairs inside one
+    body carry no viscosity and body particles use their own density."""
+    if state.rigid is None:
+        return predict_velocity(
+            scene, params, state.velocity, state.kind, state.active, pairs
+        )
+    return predict_velocity(
+        scene,
+        params,
+        state.velocity,
+        state.kind,
+        state.active,
+        without_internal_pairs(state, pairs),
+        particle_density(params, state),
+    )
 
 
 def collide(

@@ -14,11 +14,10 @@ from ..bodies import (
     is_body,
     particle_density,
     with_contact,
-    without_internal_pairs,
 )
 from ..operators import number_density
 from ._correct import pressure_gradient
-from ._predict import collide, is_mobile, neighbour_pairs, predict_velocity
+from ._predict import collide, is_mobile, neighbour_pairs, predict_state_velocity
 from ._pressure import solve_pressure
 from ._source import AbstractSource, MixedSource
 from ._surface import FreeSurface, detect_surface
@@ -87,15 +86,7 @@ class SemiImplicit(AbstractSolver):
         mobile = is_mobile(state.kind, state.active)
         # 1. Explicit part at positions r^k (eq. 2.2-3, 2.2-5).
         nbrs_k, pairs_k = neighbour_pairs(scene, state.position, state.active)
-        u_star = predict_velocity(
-            scene,
-            params,
-            state.velocity,
-            state.kind,
-            state.active,
-            without_internal_pairs(state, pairs_k),
-            None if state.rigid is None else particle_density(params, state),
-        )
+        u_star = predict_state_velocity(scene, params, state, pairs_k)
         u_star = collide(
             u_star,
             state.kind,

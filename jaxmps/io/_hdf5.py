@@ -479,16 +479,20 @@ def load_state(path: str | os.PathLike, case: Any):
         rigid_values = (
             {k: v[()] for k, v in group["rigid"].items()} if "rigid" in group else None
         )
-    fields = {}
-    for name in STATE_FIELDS[:-1]:
-        like = getattr(case.state, name)
-        value = np.asarray(values[name])
+
+    def cast(where: str, value, like):
+        value = np.asarray(value)
         if value.shape != like.shape:
             raise ValueError(
-                f"'{path}': /state/{name} has shape {value.shape} but the case expects "
+                f"'{path}': {where} has shape {value.shape} but the case expects "
                 f"{tuple(like.shape)}: it is not a run of this case."
             )
-        fields[name] = jnp.asarray(value, dtype=like.dtype)
+        return jnp.asarray(value, dtype=like.dtype)
+
+    fields = {
+        name: cast(f"/state/{name}", values[name], getattr(case.state, name))
+        for name in STATE_FIELDS[:-1]
+    }
     rigid = None
     like_rigid = getattr(case.state, "rigid", None)
     if (like_rigid is None) != (rigid_values is None):
@@ -502,13 +506,7 @@ def load_state(path: str | os.PathLike, case: Any):
         for name, like in _module_fields(like_rigid).items():
             if name not in rigid_values:
                 raise ValueError(f"'{path}': /state/rigid lacks '{name}'.")
-            value = np.asarray(rigid_values[name])
-            if value.shape != like.shape:
-                raise ValueError(
-                    f"'{path}': /state/rigid/{name} has shape {value.shape} but the "
-                    f"case expects {tuple(like.shape)}: it is not a run of this case."
-                )
-            parts[name] = jnp.asarray(value, dtype=like.dtype)
+            parts[name] = cast(f"/state/rigid/{name}", rigid_values[name], like)
         rigid = type(like_rigid)(**parts)
     return State(**fields, result=result_from_value(int(values["result"])), rigid=rigid)
 

@@ -8,11 +8,11 @@ import jax.numpy as jnp
 import numpy as np
 
 from .. import geometry
-from .._build import add_rigid_bodies, make_params, make_scene, make_state
+from .._build import add_rigid_bodies, make_scene, make_state
 from .._types import Kind
 from ..bodies import Coulomb
 from ._case import Case
-from ._common import default_dt, make_solver, resolve, velocity_scale, whole
+from ._common import case_params, make_solver, resolve, velocity_scale, whole
 from ._probes import BodyValue, FrontPosition, WallForce, WaterLevel
 
 
@@ -34,9 +34,7 @@ def _orientation(dim: int, degrees: float):
     return [[0.0, -degrees, 0.0]]  # rotation about y taking x towards z is -angle
 
 
-def _body_case(
-    config, fluid, box, walls, wall_kind, domain, speed, orientation, gravity=None
-):
+def _body_case(config, fluid, box, walls, wall_kind, domain, speed, orientation):
     """Scene, params and state for fluid + one rigid box + walls."""
     l0 = config["spacing"]
     dim = box.shape[1]
@@ -66,19 +64,7 @@ def _body_case(
         max_neighbours=config["max_neighbours"],
         cell_capacity=cells,
     )
-    params = make_params(
-        dim,
-        dt=default_dt(config, speed),
-        density=config["density"],
-        viscosity=config["viscosity"],
-        gravity=config["gravity"],
-        beta=config["beta"],
-        sound_speed=config["sound_speed"],
-    )
-    if gravity is not None:
-        params = eqx.tree_at(
-            lambda p: p.gravity, params, jnp.asarray(gravity, params.gravity.dtype)
-        )
+    params = case_params(config, dim, speed)
     state = make_state(scene, position, kind)
     friction = config.get("friction", "default")
     return add_rigid_bodies(

@@ -112,8 +112,14 @@ def tank_case(
         max_neighbours=config["max_neighbours"],
         cell_capacity=config["cell_capacity"],
     )
-    dim = position.shape[1]
-    params = make_params(
+    params = case_params(config, position.shape[1], velocity_scale)
+    state = make_state(scene, position, kind)
+    return scene, params, state, dict(walls=walls, wall_kind=wall_kind)
+
+
+def case_params(config: dict, dim: int, velocity_scale: float):
+    """Params from the common settings (dt from the Courant rule unless given)."""
+    return make_params(
         dim,
         dt=default_dt(config, velocity_scale),
         density=config["density"],
@@ -122,8 +128,6 @@ def tank_case(
         beta=config["beta"],
         sound_speed=config["sound_speed"],
     )
-    state = make_state(scene, position, kind)
-    return scene, params, state, dict(walls=walls, wall_kind=wall_kind)
 
 
 def nearest_wall(walls: np.ndarray, wall_kind: np.ndarray, point) -> tuple[int, ...]:
