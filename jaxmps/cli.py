@@ -143,6 +143,9 @@ def _cmd_info(args) -> int:
     print(
         f"  probes   {len(data.probes.get('time', []))} rows: {', '.join(names) or '-'}"
     )
+    if data.bodies:
+        count = data.bodies["centre"].shape[1]
+        print(f"  bodies   {count} rigid, per frame: {', '.join(sorted(data.bodies))}")
     if data.state:
         from ._result import Result
         from .io._hdf5 import result_from_value

@@ -1,5 +1,6 @@
 """The `jaxmps` command line: scenes, run, info, plot, and usage errors."""
 
+import numpy as np
 import pytest
 
 import jaxmps
@@ -107,3 +108,17 @@ def test_plot(run_file, tmp_path):
     png2 = tmp_path / "first.png"
     assert main(["plot", str(run_file), "--time", "0", "--out", str(png2)]) == 0
     assert png2.exists()
+
+
+def test_run_and_info_with_a_rigid_body(tmp_path, capsys):
+    """A body scene runs from the command line; its file has /particles/body and a
+    /bodies group, and `info` lists them."""
+    out = tmp_path / "impact.h5"
+    args = ["run", "block_impact", "--set", "spacing=0.25", "--t-end", "0.02"]
+    assert main([*args, "--quiet", "--out", str(out)]) == 0
+    data = jaxmps.io.read_run(out)
+    assert set(np.unique(data.particles["body"])) == {-1, 0}
+    assert data.bodies["centre"].shape[1:] == (1, 2)
+    capsys.readouterr()
+    assert main(["info", str(out)]) == 0
+    assert "bodies   1 rigid" in capsys.readouterr().out
