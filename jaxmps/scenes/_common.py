@@ -118,7 +118,8 @@ def tank_case(
 
 
 def case_params(config: dict, dim: int, velocity_scale: float):
-    """Params from the common settings (dt from the Courant rule unless given)."""
+    """Params from the common settings, dt from the Courant rule for
+    `velocity_scale` (or the `dt` setting)."""
     return make_params(
         dim,
         dt=default_dt(config, velocity_scale),

@@ -5,11 +5,11 @@ import math
 import numpy as np
 
 from .. import geometry
-from .._build import make_params, make_scene, make_state
+from .._build import make_scene, make_state
 from .._types import Kind
 from ..fluid import Inflow, InflowParams, Outflow
 from ._case import Case
-from ._common import default_dt, make_solver, resolve, whole
+from ._common import case_params, make_solver, resolve, whole
 from ._probes import AbstractProbe, WaterLevel
 
 DEFAULTS = {
@@ -106,7 +106,6 @@ def flume(**overrides) -> Case:
     ).astype(np.int32)
     n_fluid = len(fluid)
 
-    dt = default_dt(c, u_in + math.sqrt(c["gravity"] * h_in))
     if c["pool"] is None:
         columns = math.ceil(u_in * float(c["t_end"]) / l0) + 2
         # Enough for what enters over t_end on a dry bed, or for the bed filled up
@@ -143,15 +142,7 @@ def flume(**overrides) -> Case:
         ),
         Outflow(position=outflow_at),
     )
-    params = make_params(
-        2,
-        dt=dt,
-        density=c["density"],
-        viscosity=c["viscosity"],
-        gravity=c["gravity"],
-        beta=c["beta"],
-        sound_speed=c["sound_speed"],
-    )
+    params = case_params(c, 2, u_in + math.sqrt(c["gravity"] * h_in))
     params = _with_inflow(
         params, InflowParams(velocity=np.asarray(u_in, params.dt.dtype))
     )

@@ -6,11 +6,11 @@ import equinox as eqx
 import numpy as np
 
 from .. import geometry
-from .._build import make_params, make_scene, make_state
+from .._build import make_scene, make_state
 from .._types import Kind
 from ..fluid import PrescribedMotion, StrokeParams, Tabulated
 from ._case import Case
-from ._common import default_dt, make_solver, resolve, whole
+from ._common import case_params, make_solver, resolve, whole
 from ._probes import StripLevel
 
 DEFAULTS = {
@@ -125,15 +125,7 @@ def wave_tank(**overrides) -> Case:
     scene = eqx.tree_at(lambda s: s.motion, scene, motion, is_leaf=lambda x: x is None)
     omega_scale = 2 * math.pi * half_stroke / period
     velocity_scale = max(math.sqrt(c["gravity"] * depth), omega_scale)
-    params = make_params(
-        2,
-        dt=default_dt(c, velocity_scale),
-        density=c["density"],
-        viscosity=c["viscosity"],
-        gravity=c["gravity"],
-        beta=c["beta"],
-        sound_speed=c["sound_speed"],
-    )
+    params = case_params(c, 2, velocity_scale)
     t_end = float(c["t_end"])
     times = np.linspace(0.0, t_end + period, int((t_end + period) / period * 40) + 1)
     ramp = np.clip(times / (float(c["ramp_periods"]) * period), 0.0, 1.0)
