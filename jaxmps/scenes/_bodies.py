@@ -8,11 +8,17 @@ import jax.numpy as jnp
 import numpy as np
 
 from .. import geometry
-from .._build import add_rigid_bodies, make_scene, make_state
+from .._build import add_rigid_bodies, make_state
 from .._types import Kind
 from ..bodies import Coulomb
 from ._case import Case
-from ._common import case_params, make_solver, resolve, velocity_scale, whole
+from ._common import (
+    case_params,
+    case_scene,
+    resolve,
+    velocity_scale,
+    whole,
+)
 from ._probes import BodyValue, FrontPosition, WallForce, WaterLevel
 
 
@@ -36,7 +42,6 @@ def _orientation(dim: int, degrees: float):
 
 def _body_case(config, fluid, box, walls, wall_kind, domain, speed, orientation):
     """Scene, params and state for fluid + one rigid box + walls."""
-    l0 = config["spacing"]
     dim = box.shape[1]
     position = np.concatenate([fluid, box, walls])
     kind = np.concatenate(
@@ -49,20 +54,10 @@ def _body_case(config, fluid, box, walls, wall_kind, domain, speed, orientation)
     body = np.concatenate(
         [np.full(len(fluid), -1), np.zeros(len(box), int), np.full(len(walls), -1)]
     )
-    solver, weight = make_solver(config)
     # A rotating body fills cells differently from the initial lattice: allow the
     # densest packing of a cell of side r_e with margin.
-    cells = config["cell_capacity"]
-    if cells is None:
-        cells = math.ceil(1.5 * (2.1 + 1.0) ** dim)
-    scene = make_scene(
-        position,
-        l0,
-        domain,
-        solver=solver,
-        weight=weight,
-        max_neighbours=config["max_neighbours"],
-        cell_capacity=cells,
+    scene = case_scene(
+        config, position, domain, cell_capacity=math.ceil(1.5 * (2.1 + 1.0) ** dim)
     )
     params = case_params(config, dim, speed)
     state = make_state(scene, position, kind)

@@ -81,6 +81,24 @@ def make_solver(config: dict):
     return solver, MPSWeight()
 
 
+def case_scene(config: dict, position, domain, *, cell_capacity=None, capacity=None):
+    """The Scene of a built-in case: the solver and weight of the `solver` setting,
+    the `max_neighbours` / `cell_capacity` settings (`cell_capacity` here is the
+    scene's own default when the setting is None)."""
+    solver, weight = make_solver(config)
+    cells = config["cell_capacity"]
+    return make_scene(
+        position,
+        config["spacing"],
+        domain,
+        capacity=capacity,
+        solver=solver,
+        weight=weight,
+        max_neighbours=config["max_neighbours"],
+        cell_capacity=cell_capacity if cells is None else cells,
+    )
+
+
 def tank_case(
     config: dict,
     fluid_lower,
@@ -102,16 +120,7 @@ def tank_case(
     lower = np.asarray(tank_lower, float) - layers * l0 - 2 * l0
     upper = np.asarray(tank_upper, float) + layers * l0 + 2 * l0
     upper[-1] = tank_upper[-1] + margin
-    solver, weight = make_solver(config)
-    scene = make_scene(
-        position,
-        l0,
-        (lower, upper),
-        solver=solver,
-        weight=weight,
-        max_neighbours=config["max_neighbours"],
-        cell_capacity=config["cell_capacity"],
-    )
+    scene = case_scene(config, position, (lower, upper))
     params = case_params(config, position.shape[1], velocity_scale)
     state = make_state(scene, position, kind)
     return scene, params, state, dict(walls=walls, wall_kind=wall_kind)

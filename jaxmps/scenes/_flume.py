@@ -5,11 +5,11 @@ import math
 import numpy as np
 
 from .. import geometry
-from .._build import make_scene, make_state
+from .._build import make_state
 from .._types import Kind
 from ..fluid import Inflow, InflowParams, Outflow
 from ._case import Case
-from ._common import case_params, make_solver, resolve, whole
+from ._common import case_params, case_scene, resolve, whole
 from ._probes import AbstractProbe, WaterLevel
 
 DEFAULTS = {
@@ -121,17 +121,7 @@ def flume(**overrides) -> Case:
     top = max(h_in, weir) + (max(0.3 * length, 0.4) if margin is None else margin)
     lower = np.array([-(layers + 3) * l0, -(layers + 2) * l0 - 0.2 * length])
     upper = np.array([length + (layers + 3) * l0, top])
-    solver, weight = make_solver(c)
-    scene = make_scene(
-        position,
-        l0,
-        (lower, upper),
-        capacity=capacity,
-        solver=solver,
-        weight=weight,
-        max_neighbours=c["max_neighbours"],
-        cell_capacity=c["cell_capacity"],
-    )
+    scene = case_scene(c, position, (lower, upper), capacity=capacity)
     outflow_at = length + (layers * l0 if weir > 0 else 0.0) + l0
     scene = _with_boundaries(
         scene,

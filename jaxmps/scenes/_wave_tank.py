@@ -6,11 +6,11 @@ import equinox as eqx
 import numpy as np
 
 from .. import geometry
-from .._build import make_scene, make_state
+from .._build import make_state
 from .._types import Kind
 from ..fluid import PrescribedMotion, StrokeParams, Tabulated
 from ._case import Case
-from ._common import case_params, make_solver, resolve, whole
+from ._common import case_params, case_scene, resolve, whole
 from ._probes import StripLevel
 
 DEFAULTS = {
@@ -107,16 +107,7 @@ def wave_tank(**overrides) -> Case:
     period = float(c["wave_period"])
     lower = np.array([-travel - (layers + 3) * l0, -(layers + 2) * l0])
     upper = np.array([length + (layers + 3) * l0, height + depth])
-    solver, weight = make_solver(c)
-    scene = make_scene(
-        position,
-        l0,
-        (lower, upper),
-        solver=solver,
-        weight=weight,
-        max_neighbours=c["max_neighbours"],
-        cell_capacity=c["cell_capacity"],
-    )
+    scene = case_scene(c, position, (lower, upper))
     motion = PrescribedMotion(
         particles=tuple(range(n_fluid, n_fluid + len(piston))),
         axis=(1.0, 0.0),
