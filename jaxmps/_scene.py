@@ -5,7 +5,14 @@ import equinox as eqx
 from .bodies import RigidBodies
 from .fluid import AbstractSolver, Inflow, Outflow, PrescribedMotion, SemiImplicit
 from .neighbours import Grid
-from .operators import AbstractGradient, AbstractWeight, CorrectedGradient, MPSWeight
+from .operators import (
+    AbstractGradient,
+    AbstractLaplacian,
+    AbstractWeight,
+    CorrectedGradient,
+    MPSWeight,
+    StandardLaplacian,
+)
 
 
 class Scene(eqx.Module):
@@ -25,6 +32,7 @@ class Scene(eqx.Module):
         max_neighbours: neighbour slots per particle.
         courant_limit: largest max|u| dt / l0 accepted before `Result.step_too_large`.
         weight: weight function of every operator.
+        laplacian: Laplacian model of the viscous term and the pressure equation.
         gradient: pressure-gradient model.
         solver: how the fluid is advanced (`SemiImplicit()` or `Explicit()`).
         inflow: optional moving inflow boundary fed from the inactive pool.
@@ -43,6 +51,7 @@ class Scene(eqx.Module):
     max_neighbours: int
     courant_limit: float = 0.5
     weight: AbstractWeight = MPSWeight()
+    laplacian: AbstractLaplacian = StandardLaplacian()
     gradient: AbstractGradient = CorrectedGradient(minimum_shift=True)
     solver: AbstractSolver = SemiImplicit()
     inflow: Inflow | None = None

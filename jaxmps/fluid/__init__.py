@@ -22,8 +22,14 @@ from ._pressure import pressure_system as pressure_system
 from ._pressure import solve_pressure as solve_pressure
 from ._semi_implicit import AbstractSolver as AbstractSolver
 from ._semi_implicit import SemiImplicit as SemiImplicit
+from ._source import AbstractCompensation as AbstractCompensation
 from ._source import AbstractSource as AbstractSource
 from ._source import DensitySource as DensitySource
+from ._source import DynamicCompensation as DynamicCompensation
+from ._source import HigherOrderSource as HigherOrderSource
 from ._source import MixedSource as MixedSource
+from ._source import SourceInputs as SourceInputs
+from ._source import density_rate as density_rate
+from ._stabilise import DynamicStabilisation as DynamicStabilisation
 from ._surface import FreeSurface as FreeSurface
 from ._surface import detect_surface as detect_surface

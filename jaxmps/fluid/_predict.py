@@ -8,7 +8,7 @@ from .._numerics import take_rows
 from .._params import Params
 from .._types import MOBILE_KINDS, is_kind
 from ..bodies import particle_density, without_internal_pairs
-from ..operators import Pairs, laplacian, make_pairs
+from ..operators import Pairs, make_pairs
 
 
 def predict_velocity(
@@ -31,7 +31,7 @@ def predict_velocity(
     acceleration is (rho0 / rho_i) nu <lap u>: the pair forces then stay equal and
     opposite between a body and the fluid.
     """
-    lap_u = laplacian(pairs, velocity, scene.n0, scene.lam, scene.dim)
+    lap_u = scene.laplacian(pairs, velocity, scene)
     viscous = params.viscosity * lap_u
     if density is not None:
         viscous = viscous * jnp.reshape(params.density / density, (-1, 1))

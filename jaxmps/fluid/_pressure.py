@@ -14,21 +14,22 @@ def pressure_system(
     kind,
     active: Bool[Array, " n"],
     surface: Bool[Array, " n"],
+    coefficient: Float[Array, "n k"] | None = None,
 ):
     """The PPE operator A (symmetric positive definite), its diagonal and row mask.
 
     For a particle i in the system S (active fluid/wall/body, not on the surface):
         (A p)_i = sum_j c_ij (p_i - [j in S] p_j),
-    with c_ij = w_ij for pressure-carrying neighbours j. Surface neighbours have
+    with c_ij the Laplacian's pair coefficient (default w_ij, the standard
+    Laplacian) for pressure-carrying neighbours j. Surface neighbours have
     p_j = 0 (Dirichlet) and stay in the diagonal; dummy neighbours drop out of both
     the diagonal and the off-diagonal terms (a zero-gradient Neumann wall, seed 000
     §2.4.2). Rows outside S are the identity, so their pressure solves to 0.
     """
     carries = jnp.logical_and(active, is_kind(kind, PRESSURE_KINDS))
     in_system = jnp.logical_and(carries, ~surface)
-    coupling = jnp.where(
-        pairs.valid & take_rows(carries, pairs.index), pairs.weight, 0.0
-    )
+    c = pairs.weight if coefficient is None else coefficient
+    coupling = jnp.where(pairs.valid & take_rows(carries, pairs.index), c, 0.0)
     diag = jnp.sum(coupling, axis=1)
     neighbour_in_system = take_rows(in_system, pairs.index)
     off = jnp.where(neighbour_in_system, coupling, 0.0)
@@ -53,9 +54,10 @@ def solve_pressure(
     rtol: float,
     atol: float,
     max_iterations: int,
+    coefficient: Float[Array, "n k"] | None = None,
 ) -> tuple[Float[Array, " n"], SolveInfo]:
     """Solve A p = source on the system rows (source is ignored elsewhere)."""
-    matvec, diag, in_system = pressure_system(pairs, kind, active, surface)
+    matvec, diag, in_system = pressure_system(pairs, kind, active, surface, coefficient)
     b = jnp.where(in_system, source, 0.0)
     x0 = jnp.where(in_system, guess, 0.0)
     return solve_spd(matvec, b, x0, 1.0 / diag, rtol, atol, max_iterations)

@@ -19,7 +19,8 @@ from ..operators import number_density
 from ._correct import pressure_gradient
 from ._predict import collide, is_mobile, neighbour_pairs, predict_state_velocity
 from ._pressure import solve_pressure
-from ._source import AbstractSource, MixedSource
+from ._source import AbstractSource, MixedSource, SourceInputs
+from ._stabilise import DynamicStabilisation
 from ._surface import FreeSurface, detect_surface
 
 
@@ -50,10 +51,14 @@ class SemiImplicit(AbstractSolver):
         max_iterations: cap on CG iterations; reaching it without converging sets
             `Result.pressure_not_converged`.
         clamp_negative_pressure: set negative pressures to zero after the solve.
-        collision_distance: collision-guard distance, in units of the spacing l0.
+        collision_distance: collision-guard distance, in units of the spacing l0;
+            None switches the guard off.
         collision_restitution: coefficient of restitution of the collision guard.
-        source: the PPE source term (`MixedSource()` or the seed's `DensitySource()`).
+        source: the PPE source term (`MixedSource()`, the seed's `DensitySource()`
+            or the higher-order `HigherOrderSource()`).
         surface: free-surface detection settings.
+        stabiliser: `DynamicStabilisation()` (DS, with the unshifted corrected
+            gradient of the high-accuracy scheme) or None.
     """
 
     rtol: float | None = None
@@ -63,12 +68,13 @@ class SemiImplicit(AbstractSolver):
     # zero (as most MPS codes do) suppresses tensile clustering at the free surface
     # with the corrected gradient, which has no minimum-pressure shift.
     clamp_negative_pressure: bool = True
-    collision_distance: float = 0.5
+    collision_distance: float | None = 0.5
     collision_restitution: float = 0.2
     # Choice: the seed's source (n0 - n*)/n0 alone is unstable here (see
     # `DensitySource`); the default is the mixed source of Tanaka & Masunaga (2010).
     source: AbstractSource = MixedSource()
     surface: FreeSurface = FreeSurface()
+    stabiliser: DynamicStabilisation | None = None
 
     def __check_init__(self):
         if self.rtol is not None and not 0 < self.rtol < 1:
@@ -87,14 +93,15 @@ class SemiImplicit(AbstractSolver):
         # 1. Explicit part at positions r^k (eq. 2.2-3, 2.2-5).
         nbrs_k, pairs_k = neighbour_pairs(scene, state.position, state.active)
         u_star = predict_state_velocity(scene, params, state, pairs_k)
-        u_star = collide(
-            u_star,
-            state.kind,
-            state.active,
-            pairs_k,
-            self.collision_distance * scene.spacing,
-            self.collision_restitution,
-        )
+        if self.collision_distance is not None:
+            u_star = collide(
+                u_star,
+                state.kind,
+                state.active,
+                pairs_k,
+                self.collision_distance * scene.spacing,
+                self.collision_restitution,
+            )
         x_star = jnp.where(
             mobile[:, None], state.position + dt * u_star, state.position
         )
@@ -107,12 +114,20 @@ class SemiImplicit(AbstractSolver):
         )
 
         # 3. Pressure Poisson equation (eq. 2.2-14/15).
-        # A p = sum_j w_ij (p_i - p_j) = -(lambda n0 / 2d) <lap p>, so b = -(lambda n0 /
-        # 2d) S for the PPE <lap p> = S (eq. 2.2-15).
-        rhs = self.source(
-            pairs, n_star, u_star, params.density, dt, scene.n0, scene.dim
+        # With <lap p>_i = f sum_j c_ij (p_j - p_i) (the Scene's Laplacian),
+        # A p = sum_j c_ij (p_i - p_j) = -<lap p> / f, so b = -S / f for <lap p> = S.
+        inputs = SourceInputs(
+            pairs=pairs,
+            n_star=n_star,
+            u_star=u_star,
+            pairs_k=pairs_k,
+            n_k=number_density(pairs_k),
+            velocity_k=state.velocity,
+            density=params.density,
+            dt=dt,
         )
-        source = -(scene.lam * scene.n0 / (2 * scene.dim)) * rhs
+        coefficient, factor = scene.laplacian.coefficients(pairs, scene)
+        source = -self.source(scene, inputs) / factor
         pressure, solve_info = solve_pressure(
             pairs,
             state.kind,
@@ -123,6 +138,7 @@ class SemiImplicit(AbstractSolver):
             self.tolerance(state.position.dtype),
             self.atol,
             self.max_iterations,
+            coefficient,
         )
         if self.clamp_negative_pressure:
             pressure = jnp.maximum(pressure, 0.0)
@@ -148,6 +164,17 @@ class SemiImplicit(AbstractSolver):
         u_prime = jnp.where(
             mobile[:, None], -(dt / jnp.reshape(rho, (-1, 1))) * grad_p, 0.0
         )
+        if self.stabiliser is not None:
+            push = self.stabiliser(
+                scene,
+                pairs,
+                state.position,
+                x_star + dt * u_prime,
+                state.kind,
+                state.active,
+                dt,
+            )
+            u_prime = u_prime + dt * push
         new_state = State(
             time=state.time + dt,
             step=state.step + 1,

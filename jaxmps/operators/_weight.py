@@ -16,6 +16,16 @@ class AbstractWeight(eqx.Module):
     def value(self, r: np.ndarray | Array, r_e: float) -> np.ndarray | Array:
         """w(r) for 0 < r < r_e (callers mask r = 0 and r >= r_e themselves)."""
 
+    @abc.abstractmethod
+    def derivative(self, r: np.ndarray | Array, r_e: float) -> np.ndarray | Array:
+        """dw/dr for 0 < r < r_e (the higher-order source and Laplacian use it)."""
+
+    @abc.abstractmethod
+    def second_derivative(
+        self, r: np.ndarray | Array, r_e: float
+    ) -> np.ndarray | Array:
+        """d^2w/dr^2 for 0 < r < r_e."""
+
     def __call__(
         self, r: Float[Array, "*b"], valid: Bool[Array, "*b"], r_e: float
     ) -> Float[Array, "*b"]:
@@ -35,6 +45,12 @@ class MPSWeight(AbstractWeight):
     def value(self, r, r_e):
         return r_e / r - 1.0
 
+    def derivative(self, r, r_e):
+        return -r_e / r**2
+
+    def second_derivative(self, r, r_e):
+        return 2.0 * r_e / r**3
+
 
 class EMPSWeight(AbstractWeight):
     """E-MPS weight of number density, Laplacian and divergence (Yamada et al. 2011;
@@ -43,12 +59,42 @@ class EMPSWeight(AbstractWeight):
     def value(self, r, r_e):
         return r_e / r + r / r_e - 2.0
 
+    def derivative(self, r, r_e):
+        return -r_e / r**2 + 1.0 / r_e
+
+    def second_derivative(self, r, r_e):
+        return 2.0 * r_e / r**3
+
 
 class EMPSGradientWeight(AbstractWeight):
     """E-MPS weight of the pressure gradient (seed 002 eq. 3.6): r_e/r - r/r_e."""
 
     def value(self, r, r_e):
         return r_e / r - r / r_e
+
+    def derivative(self, r, r_e):
+        return -r_e / r**2 - 1.0 / r_e
+
+    def second_derivative(self, r, r_e):
+        return 2.0 * r_e / r**3
+
+
+class WendlandWeight(AbstractWeight):
+    """Wendland (1995) C2 weight w(r) = (1 - r/r_e)^4 (1 + 4 r/r_e) (seed 001 eq.
+    2.31), the kernel of the high-accuracy scheme. Finite at r = 0 (w = 1) with a
+    gentle slope; w' and w'' vanish continuously at r_e."""
+
+    def value(self, r, r_e):
+        q = r / r_e
+        return (1.0 - q) ** 4 * (1.0 + 4.0 * q)
+
+    def derivative(self, r, r_e):
+        q = r / r_e
+        return -20.0 * r / r_e**2 * (1.0 - q) ** 3
+
+    def second_derivative(self, r, r_e):
+        q = r / r_e
+        return 20.0 / r_e**2 * (1.0 - q) ** 2 * (4.0 * q - 1.0)
 
 
 def lattice_offsets(dim: int, r_e: float) -> np.ndarray:
@@ -59,6 +105,15 @@ def lattice_offsets(dim: int, r_e: float) -> np.ndarray:
     pts = np.array([p for p in grid if p != (0,) * dim], dtype=np.float64)
     r = np.linalg.norm(pts, axis=1)
     return pts[r < r_e]
+
+
+def lattice_sum(fn, dim: int, r_e_over_l0: float) -> float:
+    """sum_j fn(|r_ij|, r_ij) over the neighbours of an interior point of the unit
+    lattice (spacing 1, radius `r_e_over_l0`): the reference value of a pair sum,
+    e.g. for normalising an operator so that it is exact on the initial lattice."""
+    offsets = lattice_offsets(dim, r_e_over_l0)
+    r = np.linalg.norm(offsets, axis=1)
+    return float(np.sum(np.asarray(fn(r, offsets), dtype=np.float64)))
 
 
 def reference_constants(

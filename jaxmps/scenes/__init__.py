@@ -17,14 +17,23 @@ from ._flume import flume as flume
 from ._hydrostatic import DEFAULTS as _HYDROSTATIC
 from ._hydrostatic import hydrostatic as hydrostatic
 from ._probes import AbstractProbe as AbstractProbe
+from ._probes import AnchoredStripLevel as AnchoredStripLevel
 from ._probes import BodyValue as BodyValue
 from ._probes import FluidPressureNear as FluidPressureNear
 from ._probes import FrontPosition as FrontPosition
+from ._probes import ModeAmplitude as ModeAmplitude
 from ._probes import PressureAt as PressureAt
+from ._probes import RunUp as RunUp
 from ._probes import StripLevel as StripLevel
 from ._probes import WallForce as WallForce
 from ._probes import WaterLevel as WaterLevel
 from ._probes import observe_probes as observe_probes
+from ._sloshing import SLOSHING_TANK as _SLOSHING_TANK
+from ._sloshing import STANDING_WAVE as _STANDING_WAVE
+from ._sloshing import natural_frequency as natural_frequency
+from ._sloshing import sloshing_tank as sloshing_tank
+from ._sloshing import standing_wave as standing_wave
+from ._sloshing import standing_wave_period as standing_wave_period
 from ._wave_tank import DEFAULTS as _WAVE_TANK
 from ._wave_tank import wave_tank as wave_tank
 
@@ -36,6 +45,8 @@ _REGISTRY = {
     "floating_box": (floating_box, _FLOATING_BOX),
     "flume": (flume, _FLUME),
     "hydrostatic": (hydrostatic, _HYDROSTATIC),
+    "sloshing_tank": (sloshing_tank, _SLOSHING_TANK),
+    "standing_wave": (standing_wave, _STANDING_WAVE),
     "wave_tank": (wave_tank, _WAVE_TANK),
 }
 

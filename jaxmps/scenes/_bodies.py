@@ -13,8 +13,10 @@ from .._types import Kind
 from ..bodies import Coulomb
 from ._case import Case
 from ._common import (
+    boundary_layers,
     case_params,
     case_scene,
+    discretisation,
     resolve,
     velocity_scale,
     whole,
@@ -57,7 +59,10 @@ def _body_case(config, fluid, box, walls, wall_kind, domain, speed, orientation)
     # A rotating body fills cells differently from the initial lattice: allow the
     # densest packing of a cell of side r_e with margin.
     scene = case_scene(
-        config, position, domain, cell_capacity=math.ceil(1.5 * (2.1 + 1.0) ** dim)
+        config,
+        position,
+        domain,
+        cell_capacity=math.ceil(1.5 * (discretisation(config)["r_e"] + 1.0) ** dim),
     )
     params = case_params(config, dim, speed)
     state = make_state(scene, position, kind)
@@ -76,7 +81,7 @@ def _body_case(config, fluid, box, walls, wall_kind, domain, speed, orientation)
 
 
 def _domain(lower, upper, l0, top_margin):
-    layers = geometry.layers_for(2.1)
+    layers = 3  # boundary layers for r_e up to 3 l0
     lo = np.asarray(lower, float) - layers * l0 - 2 * l0
     hi = np.asarray(upper, float) + layers * l0 + 2 * l0
     hi[-1] = upper[-1] + top_margin
@@ -140,7 +145,7 @@ def floating_box(**overrides) -> Case:
     else:
         fluid = geometry.remove_overlaps(fluid, box, 0.99 * l0)
     walls, wall_kind = geometry.tank(
-        [0.0] * dim, [length] + across + [height], l0, layers=geometry.layers_for(2.1)
+        [0.0] * dim, [length] + across + [height], l0, layers=boundary_layers(c)
     )
     scene, params, state = _body_case(
         {**c, "mu_static": 0.0, "friction": None},
@@ -223,7 +228,7 @@ def friction_tilt(**overrides) -> Case:
     )
     height = 1.2 * a
     walls, wall_kind = geometry.tank(
-        [0.0] * dim, [length] + across + [height], l0, layers=geometry.layers_for(2.1)
+        [0.0] * dim, [length] + across + [height], l0, layers=boundary_layers(c)
     )
     friction = Coulomb(torque=bool(c["friction_torque"]))
     scene, params, state = _body_case(
@@ -303,7 +308,7 @@ def block_impact(**overrides) -> Case:
     )
     height = gap + 1.2 * a
     walls, wall_kind = geometry.tank(
-        [0.0] * dim, [length] + across + [height], l0, layers=geometry.layers_for(2.1)
+        [0.0] * dim, [length] + across + [height], l0, layers=boundary_layers(c)
     )
     scene, params, state = _body_case(
         {**c, "friction": None},
@@ -391,7 +396,7 @@ def dam_break_box(**overrides) -> Case:
     fluid = geometry.block([0.0, 0.0], [a, h], l0)
     box = geometry.block([x0, 0.0], [x0 + bw, bh], l0)
     walls, wall_kind = geometry.tank(
-        [0.0, 0.0], [length, height], l0, layers=geometry.layers_for(2.1)
+        [0.0, 0.0], [length, height], l0, layers=boundary_layers(c)
     )
     scene, params, state = _body_case(
         c,

@@ -5,11 +5,11 @@ from typing import Any
 
 import numpy as np
 
-from .. import geometry
+from .. import geometry, schemes
 from .._build import make_params, make_scene, make_state
 from .._types import Kind
 from ..fluid import Explicit, SemiImplicit
-from ..operators import EMPSWeight, MPSWeight
+from ..operators import EMPSWeight
 
 # Overrides every scene accepts, with their defaults (None: scene-specific).
 COMMON = {
@@ -30,7 +30,7 @@ COMMON = {
 }
 
 SOLVERS = ("semi_implicit", "explicit")
-SCHEMES = ("standard",)
+SCHEMES = ("standard", "high_accuracy")
 
 
 def resolve(name: str, specific: dict[str, Any], overrides: dict[str, Any]) -> dict:
@@ -49,8 +49,12 @@ def resolve(name: str, specific: dict[str, Any], overrides: dict[str, Any]) -> d
         )
     if config["scheme"] not in SCHEMES:
         raise ValueError(
-            f"scheme={config['scheme']!r} is not available; valid: {SCHEMES} "
-            "(the high-accuracy scheme is planned)."
+            f"scheme={config['scheme']!r} is not available; valid: {SCHEMES}."
+        )
+    if config["scheme"] != "standard" and config["solver"] != "semi_implicit":
+        raise ValueError(
+            f"scheme={config['scheme']!r} is a semi-implicit scheme; use "
+            "solver=semi_implicit, or scheme=standard with solver=explicit."
         )
     if config.get("dim", 2) not in (2, 3):
         raise ValueError(f"dim must be 2 or 3, got {config.get('dim')}.")
@@ -71,31 +75,37 @@ def default_dt(config: dict, velocity_scale: float) -> float:
     return float(dt)
 
 
-def make_solver(config: dict):
-    """The solver strategy and the weight it uses, from the `solver` setting."""
+def discretisation(config: dict) -> dict:
+    """`make_scene` keywords (r_e, weight, Laplacian, gradient, solver) of the
+    `solver` and `scheme` settings."""
     if config["solver"] == "explicit":
-        return Explicit(), EMPSWeight()
+        return dict(r_e=2.1, weight=EMPSWeight(), solver=Explicit())
     solver = SemiImplicit(
         rtol=config["rtol"], max_iterations=int(config["max_iterations"])
     )
-    return solver, MPSWeight()
+    if config["scheme"] == "high_accuracy":
+        return schemes.high_accuracy(solver)
+    return schemes.standard(solver)
+
+
+def boundary_layers(config: dict) -> int:
+    """Wall + dummy layers that give a wall particle a full neighbourhood."""
+    return geometry.layers_for(discretisation(config)["r_e"])
 
 
 def case_scene(config: dict, position, domain, *, cell_capacity=None, capacity=None):
-    """The Scene of a built-in case: the solver and weight of the `solver` setting,
-    the `max_neighbours` / `cell_capacity` settings (`cell_capacity` here is the
-    scene's own default when the setting is None)."""
-    solver, weight = make_solver(config)
+    """The Scene of a built-in case: the discretisation of the `solver` and `scheme`
+    settings, the `max_neighbours` / `cell_capacity` settings (`cell_capacity`
+    here is the scene's own default when the setting is None)."""
     cells = config["cell_capacity"]
     return make_scene(
         position,
         config["spacing"],
         domain,
         capacity=capacity,
-        solver=solver,
-        weight=weight,
         max_neighbours=config["max_neighbours"],
         cell_capacity=cell_capacity if cells is None else cells,
+        **discretisation(config),
     )
 
 
@@ -109,7 +119,7 @@ def tank_case(
 ):
     """Fluid block in an open tank of walls and dummies: scene, params, state, extra."""
     l0 = config["spacing"]
-    layers = geometry.layers_for(2.1)
+    layers = boundary_layers(config)
     fluid = geometry.block(fluid_lower, fluid_upper, l0)
     walls, wall_kind = geometry.tank(tank_lower, tank_upper, l0, layers=layers)
     position = np.concatenate([fluid, walls])

@@ -9,7 +9,7 @@ from .._build import make_state
 from .._types import Kind
 from ..fluid import Inflow, InflowParams, Outflow
 from ._case import Case
-from ._common import case_params, case_scene, resolve, whole
+from ._common import boundary_layers, case_params, case_scene, resolve, whole
 from ._probes import AbstractProbe, WaterLevel
 
 DEFAULTS = {
@@ -54,7 +54,7 @@ def flume(**overrides) -> Case:
     length = whole(c["bed_length"], l0)
     weir = whole(c["weir_height"], l0) if c["weir_height"] > 0 else 0.0
     u_in = float(c["discharge"]) / h_in
-    layers = geometry.layers_for(2.1)
+    layers = boundary_layers(c)
     rows = int(round(h_in / l0))
 
     # Inflow boundary: a pressure layer at x = -l0/2 and dummy layers behind it.

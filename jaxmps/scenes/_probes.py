@@ -207,3 +207,70 @@ class WallForce(AbstractProbe):
         wall = state.active & (state.kind == int(Kind.WALL)) & inside
         area = self.spacing ** (x.shape[-1] - 1)
         return jnp.sum(jnp.where(wall, state.pressure, 0.0)) * area
+
+
+class AnchoredStripLevel(AbstractProbe):
+    """`StripLevel` whose strip centre follows a (moving) wall particle: x =
+    position[anchor, 0] + `offset` (a gauge fixed to a shaken tank)."""
+
+    name: str
+    anchor: int
+    offset: float
+    width: float
+    spacing: float
+    still_depth: float
+
+    def __call__(self, scene, state):
+        x = state.position[self.anchor, 0] + self.offset
+        fluid = jnp.logical_and(state.active, state.kind == int(Kind.FLUID))
+        inside = jnp.abs(state.position[:, 0] - x) < 0.5 * self.width
+        count = jnp.sum(fluid & inside, dtype=state.position.dtype)
+        return count * self.spacing**2 / self.width - self.still_depth
+
+
+class RunUp(AbstractProbe):
+    """Run-up on a slope rising 1 : `slope` from x = `toe` (tank frame): the highest
+    fluid particle within `band` of the slope surface, above `still_depth` [m].
+    The tank frame follows particle `anchor`, initially at x = `anchor_x`."""
+
+    name: str
+    anchor: int
+    anchor_x: float
+    toe: float
+    slope: float
+    band: float
+    still_depth: float
+
+    def __call__(self, scene, state):
+        shift = state.position[self.anchor, 0] - self.anchor_x
+        x = state.position[:, 0] - shift - self.toe
+        y = state.position[:, 1]
+        gap = (y * self.slope - x) / jnp.sqrt(1.0 + self.slope**2)
+        fluid = jnp.logical_and(state.active, state.kind == int(Kind.FLUID))
+        near = fluid & (gap < self.band) & (x > 0)
+        top = jnp.max(jnp.where(near, y, -jnp.inf))
+        return jnp.where(jnp.isfinite(top), top - self.still_depth, 0.0)
+
+
+class ModeAmplitude(AbstractProbe):
+    """Amplitude [m] of the surface mode cos(k x) over a tank [0, L] with k L a
+    multiple of 2 pi: a = (2/L) sum_fluid cos(k x_j) l0^2, the discrete form of
+    (2/L) int int_fluid cos(k x) dA = (2/L) int eta(x) cos(k x) dx (2-D), with
+    k L a multiple of pi. An integral over all particles: far smoother than a
+    level at one x. With `anchor`, x is measured in the frame of that (moving)
+    wall particle, initially at x = `anchor_x`."""
+
+    name: str
+    wave_number: float
+    length: float
+    spacing: float
+    anchor: int | None = None
+    anchor_x: float = 0.0
+
+    def __call__(self, scene, state):
+        fluid = jnp.logical_and(state.active, state.kind == int(Kind.FLUID))
+        x = state.position[:, 0]
+        if self.anchor is not None:
+            x = x - (state.position[self.anchor, 0] - self.anchor_x)
+        c = jnp.cos(self.wave_number * x)
+        return 2.0 / self.length * jnp.sum(jnp.where(fluid, c, 0.0)) * self.spacing**2

@@ -10,7 +10,7 @@ from .._build import make_state
 from .._types import Kind
 from ..fluid import PrescribedMotion, StrokeParams, Tabulated
 from ._case import Case
-from ._common import case_params, case_scene, resolve, whole
+from ._common import boundary_layers, case_params, case_scene, resolve, whole
 from ._probes import StripLevel
 
 DEFAULTS = {
@@ -65,7 +65,7 @@ def wave_tank(**overrides) -> Case:
     length, depth = whole(c["tank_length"], l0), whole(c["depth"], l0)
     height = whole(1.6 * depth, l0)
     half_stroke = 0.5 * float(c["stroke"])
-    layers = geometry.layers_for(2.1)
+    layers = boundary_layers(c)
     travel = whole(half_stroke + l0, l0)
 
     fluid = geometry.block([0.0, 0.0], [length, depth], l0)

@@ -1,0 +1,277 @@
+"""Standing waves and shaken tanks (seed 001 §3.2-3.3)."""
+
+import math
+
+import equinox as eqx
+import numpy as np
+
+from .. import geometry
+from .._build import make_state
+from .._types import Kind
+from ..fluid import Harmonic, HarmonicParams, PrescribedMotion
+from ._case import Case
+from ._common import (
+    boundary_layers,
+    case_params,
+    case_scene,
+    resolve,
+    velocity_scale,
+    whole,
+)
+from ._probes import AnchoredStripLevel, ModeAmplitude, RunUp, StripLevel
+
+
+def natural_frequency(length: float, depth: float, mode: int, gravity: float):
+    """f_n = (1/2 pi) sqrt(k g tanh(k H)), k = (2n - 1) pi / L: the n-th mode a
+    horizontally shaken rectangular tank excites (seed 001 eq. 3.7) [Hz]."""
+    k = (2 * mode - 1) * math.pi / length
+    return math.sqrt(k * gravity * math.tanh(k * depth)) / (2 * math.pi)
+
+
+def standing_wave_period(length: float, depth: float, gravity: float) -> float:
+    """Linear period of the standing wave eta = A cos(2 pi x / L) cos(omega t):
+    omega^2 = g k tanh(k H), k = 2 pi / L (seed 001 eq. 3.4-3.5)."""
+    k = 2 * math.pi / length
+    return 2 * math.pi / math.sqrt(gravity * k * math.tanh(k * depth))
+
+
+def _open_tank(c, length, height, fluid):
+    l0 = c["spacing"]
+    layers = boundary_layers(c)
+    walls, wall_kind = geometry.tank([0.0, 0.0], [length, height], l0, layers=layers)
+    return walls, wall_kind, layers
+
+
+STANDING_WAVE = {
+    "tank_length": 1.0,
+    "tank_height": 0.6,
+    "depth": 0.5,
+    "amplitude": 0.05,
+    "gravity": 9.8,
+    "spacing": 0.01,
+    "dim": 2,
+    "t_end": 5.0,
+}
+
+
+def standing_wave(**overrides) -> Case:
+    """A standing wave released from rest (seed 001 §3.2): water of mean `depth` in
+    a tank of `tank_length`, surface eta0(x) = depth + amplitude cos(2 pi x / L).
+
+    Probes: `eta_centre`, `eta_left`, `eta_right` (strip-volume elevations over
+    the two central columns and the three next to each wall) and `mode` (the
+    amplitude of the cos(2 pi x / L) surface mode from all particles). Linear
+    theory: mode = A cos(omega t), period in `config["linear_period"]`.
+    """
+    c = resolve("standing_wave", STANDING_WAVE, overrides)
+    if int(c["dim"]) != 2:
+        raise ValueError("standing_wave is 2-D (dim=2).")
+    l0 = c["spacing"]
+    length, depth = whole(c["tank_length"], l0), whole(c["depth"], l0)
+    height = whole(c["tank_height"], l0)
+    amp = float(c["amplitude"])
+    if not 0 <= amp < min(depth, height - depth):
+        raise ValueError(
+            f"amplitude={amp} must lie in [0, min(depth, tank_height - depth))."
+        )
+    grid = geometry.block([0.0, 0.0], [length, height], l0)
+    surface = depth + amp * np.cos(2 * math.pi * grid[:, 0] / length)
+    fluid = grid[grid[:, 1] < surface]
+    walls, wall_kind, _ = _open_tank(c, length, height, fluid)
+    scene, params, state = _assemble(c, fluid, walls, wall_kind, height, depth)
+    strip = 3 * l0
+    probes = (
+        # 2 l0 at the centre, which lies on a column boundary: whole columns.
+        StripLevel("eta_centre", 0.5 * length, 2 * l0, l0, depth),
+        StripLevel("eta_left", 0.5 * strip, strip, l0, depth),
+        StripLevel("eta_right", length - 0.5 * strip, strip, l0, depth),
+        ModeAmplitude("mode", 2 * math.pi / length, length, l0),
+    )
+    config = {
+        **c,
+        "tank_length": length,
+        "depth": depth,
+        "linear_period": standing_wave_period(length, depth, c["gravity"]),
+    }
+    return Case(
+        name="standing_wave",
+        scene=scene,
+        params=params,
+        state=state,
+        probes=probes,
+        t_end=float(c["t_end"]),
+        config=config,
+    )
+
+
+def _assemble(c, fluid, walls, wall_kind, height, depth, motion=None):
+    l0 = c["spacing"]
+    position = np.concatenate([fluid, walls])
+    kind = np.concatenate(
+        [np.full(len(fluid), int(Kind.FLUID), np.int32), wall_kind]
+    ).astype(np.int32)
+    layers = 3
+    travel = 0.0 if motion is None else abs(float(c["amplitude"]))
+    lower = position.min(axis=0) - (layers * l0 + travel)
+    upper = position.max(axis=0) + layers * l0 + travel
+    upper[-1] = height + 0.5 * height
+    scene = case_scene(c, position, (lower, upper))
+    # Velocity scale of the Courant rule: the long-wave speed sqrt(g H) (the wave
+    # and sloshing motions stay well below the dam-break scale sqrt(2 g H)).
+    params = case_params(c, 2, velocity_scale(0.5 * depth, c["gravity"]))
+    if motion is not None:
+        motion_params = HarmonicParams(
+            amplitude=np.asarray(c["amplitude"], params.dt.dtype),
+            frequency=np.asarray(c["frequency"], params.dt.dtype),
+        )
+        moving = tuple(range(len(fluid), len(position)))
+        law = PrescribedMotion(particles=moving, axis=(1.0, 0.0), law=motion)
+        scene = eqx.tree_at(lambda s: s.motion, scene, law, is_leaf=lambda x: x is None)
+        params = eqx.tree_at(
+            lambda p: p.motion, params, motion_params, is_leaf=lambda x: x is None
+        )
+    return scene, params, make_state(scene, position, kind)
+
+
+SLOSHING_TANK = {
+    "tank_length": 0.5,
+    "tank_height": 0.6,
+    "depth": 0.3,
+    "amplitude": 2.0e-3,
+    "frequency": 1.220419,
+    "settle": 2.0,
+    "slope": None,
+    "bottom_width": 0.3,
+    "gravity": 9.8,
+    "spacing": 0.01,
+    "dim": 2,
+    "t_end": 20.0,
+}
+
+
+def sloshing_tank(**overrides) -> Case:
+    """A tank shaken horizontally, x = x0 + A sin(2 pi f (t - settle)) after the
+    water settles (seed 001 §3.3).
+
+    Rectangular (default): `tank_length` 0.5 m, `depth` 0.3 m (seed 001 §3.3.1;
+    linear resonances 1.2204 and 2.1631 Hz, see `natural_frequency`). With `slope`
+    (e.g. 1.5, seed 001 §3.3.2): a vertical left wall, a flat bottom of
+    `bottom_width` and a right wall rising 1 : `slope`, `depth` 0.5 m is the
+    Tomita (2016) tank; its slope wall is a lattice staircase (wall particles
+    within l0 of the slope, dummies behind, measured normal to it).
+
+    Probes: `eta_left` and `eta_right` (strip-volume elevation over 3 l0 next to
+    each wall, following the tank); rectangular tank: `mode1`, `mode2` (amplitude
+    of the surface modes cos(k x), k = pi/L and 3 pi/L, that the shaking
+    excites; see `ModeAmplitude`); sloped tank: `run_up` (sloped tank: highest fluid within
+    1.5 l0 of the slope, above still water).
+    """
+    specific = dict(SLOSHING_TANK)
+    if overrides.get("slope") is not None:
+        specific.update(depth=0.5, tank_height=0.85, frequency=0.64, amplitude=7.5e-3)
+    c = resolve("sloshing_tank", specific, overrides)
+    if int(c["dim"]) != 2:
+        raise ValueError("sloshing_tank is 2-D (dim=2).")
+    l0 = c["spacing"]
+    depth, height = whole(c["depth"], l0), whole(c["tank_height"], l0)
+    if not float(c["settle"]) >= 0:
+        raise ValueError("settle must be >= 0 s.")
+    strip = 3 * l0
+    law = Harmonic(start=float(c["settle"]))
+    if c["slope"] is None:
+        length = whole(c["tank_length"], l0)
+        fluid = geometry.block([0.0, 0.0], [length, depth], l0)
+        walls, wall_kind, _ = _open_tank(c, length, height, fluid)
+        scene, params, state = _assemble(
+            c, fluid, walls, wall_kind, height, depth, motion=law
+        )
+        n_fluid = len(fluid)
+        right = n_fluid + _nearest(walls, [length + 0.5 * l0, 0.5 * depth])
+        probes = (
+            _wall_strip("eta_left", n_fluid, walls, [-0.5 * l0, 0.5 * depth], l0),
+            AnchoredStripLevel(
+                "eta_right", right, -(0.5 * l0 + 0.5 * strip), strip, l0, depth
+            ),
+            *(
+                ModeAmplitude(
+                    f"mode{m}",
+                    (2 * m - 1) * math.pi / length,
+                    length,
+                    l0,
+                    anchor=right,
+                    anchor_x=length + 0.5 * l0,
+                )
+                for m in (1, 2)
+            ),
+        )
+        config = {
+            **c,
+            "tank_length": length,
+            "depth": depth,
+            "resonances": [
+                natural_frequency(length, depth, m, c["gravity"]) for m in (1, 2)
+            ],
+        }
+    else:
+        s, base = float(c["slope"]), whole(c["bottom_width"], l0)
+        if not s > 0:
+            raise ValueError("slope must be positive (horizontal run per unit rise).")
+        length = whole(base + s * height, l0)
+        layers = boundary_layers(c)
+        walls, wall_kind = geometry.tank(
+            [0.0, 0.0], [length, height], l0, layers=layers
+        )
+        keep = walls[:, 0] < base  # left wall and the bed under the flat bottom
+        walls, wall_kind = walls[keep], wall_kind[keep]
+        grid = geometry.block(
+            [base - 2 * layers * l0, -layers * l0], [length, height], l0
+        )
+        rise = (grid[:, 0] - base) / s  # slope surface height above the bed
+        dist = (rise - grid[:, 1]) / math.sqrt(1 + 1 / s**2)
+        slab = (dist > 0) & (dist < layers * l0) & (grid[:, 0] >= base)
+        slab |= (grid[:, 1] < 0) & (grid[:, 0] >= base) & (dist < layers * l0)
+        slope_walls = grid[slab]
+        slope_kind = np.where(dist[slab] < l0, Kind.WALL, Kind.DUMMY)
+        walls = np.concatenate([walls, slope_walls])
+        wall_kind = np.concatenate([wall_kind, slope_kind]).astype(np.int32)
+        fluid = geometry.block([0.0, 0.0], [length, depth], l0)
+        above = fluid[:, 1] > (fluid[:, 0] - base) / s + 0.5 * l0
+        fluid = fluid[above | (fluid[:, 0] < base)]
+        scene, params, state = _assemble(
+            c, fluid, walls, wall_kind, height, depth, motion=law
+        )
+        n_fluid = len(fluid)
+        probes = (
+            _wall_strip("eta_left", n_fluid, walls, [-0.5 * l0, 0.5 * depth], l0),
+            RunUp(
+                "run_up",
+                n_fluid + _nearest(walls, [-0.5 * l0, 0.5 * depth]),
+                -0.5 * l0,
+                base,
+                s,
+                1.5 * l0,
+                depth,
+            ),
+        )
+        config = {**c, "depth": depth, "bottom_width": base}
+    return Case(
+        name="sloshing_tank",
+        scene=scene,
+        params=params,
+        state=state,
+        probes=probes,
+        t_end=float(c["t_end"]),
+        config=config,
+    )
+
+
+def _nearest(points, target) -> int:
+    return int(np.argmin(np.linalg.norm(points - np.asarray(target), axis=1)))
+
+
+def _wall_strip(name, n_fluid, walls, at, l0):
+    """Strip-volume elevation over 3 l0 next to the left wall, which moves."""
+    anchor = n_fluid + _nearest(walls, at)
+    strip = 3 * l0
+    depth = 2 * at[1]
+    return AnchoredStripLevel(name, anchor, 0.5 * l0 + 0.5 * strip, strip, l0, depth)

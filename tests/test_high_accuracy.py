@@ -1,0 +1,239 @@
+"""High-accuracy MPS (seed 001): each correction on polynomial fields and pairs,
+the presets, and the standing wave / sloshing set-ups against linear theory."""
+
+import math
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import jaxmps
+from jaxmps.fluid import DynamicCompensation, DynamicStabilisation, density_rate
+from jaxmps.geometry import block
+from jaxmps.neighbours import build
+from jaxmps.operators import (
+    EMPSWeight,
+    HigherOrderLaplacian,
+    MPSWeight,
+    StandardLaplacian,
+    WendlandWeight,
+    make_pairs,
+    number_density,
+    reference_constants,
+)
+
+WEIGHTS = [MPSWeight(), WendlandWeight(), EMPSWeight()]
+
+
+def _lattice(dim, weight, l0=0.01, size=9, jitter=0.0, rng=None, r_e=2.4):
+    x = block([0.0] * dim, [size * l0] * dim, l0)
+    if jitter:
+        x = x + rng.uniform(-jitter, jitter, x.shape) * l0
+    scene = jaxmps.make_scene(
+        x,
+        l0,
+        (np.full(dim, -3 * l0), np.full(dim, (size + 3) * l0)),
+        r_e=r_e,
+        weight=weight,
+    )
+    nbrs = build(
+        scene.grid,
+        jnp.asarray(x),
+        jnp.ones(len(x), bool),
+        scene.max_neighbours,
+        scene.r_e,
+    )
+    pairs = make_pairs(nbrs.index, jnp.asarray(x), scene.weight, scene.r_e)
+    interior = np.all((x > 3 * l0) & (x < (size - 3) * l0), axis=1)
+    return scene, jnp.asarray(x), pairs, interior
+
+
+def test_wendland_and_standard_constants_at_r_e_2_4():
+    """Digest T4: n0 and lambda of the square lattice at r_e = 2.4 l0."""
+    n0, lam = reference_constants(WendlandWeight(), 2, 2.4)
+    assert (n0, lam) == (
+        pytest.approx(1.6315, abs=1e-4),
+        pytest.approx(1.2609, abs=1e-4),
+    )
+    n0, lam = reference_constants(MPSWeight(), 2, 2.4)
+    assert (n0, lam) == (
+        pytest.approx(9.7747, abs=1e-4),
+        pytest.approx(1.7708, abs=1e-4),
+    )
+
+
+@pytest.mark.parametrize("weight", WEIGHTS, ids=lambda w: type(w).__name__)
+def test_weight_derivatives_match_autodiff(weight):
+    r = jnp.linspace(0.3, 2.35, 17)
+    d1 = jax.vmap(jax.grad(lambda r: weight.value(r, 2.4)))(r)
+    d2 = jax.vmap(jax.grad(jax.grad(lambda r: weight.value(r, 2.4))))(r)
+    np.testing.assert_allclose(weight.derivative(r, 2.4), d1, rtol=1e-12)
+    np.testing.assert_allclose(weight.second_derivative(r, 2.4), d2, rtol=1e-12)
+
+
+def test_wendland_is_smooth_at_the_cutoff_and_finite_at_zero():
+    w = WendlandWeight()
+    assert float(w.value(0.0, 2.4)) == 1.0
+    for f in (w.value, w.derivative):
+        assert abs(float(f(2.4 - 1e-9, 2.4))) < 1e-12
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+def test_higher_order_laplacian_on_quadratics(dim):
+    """Printed HL: |r|^2 -> 12.17 with Wendland in 2-D (digest T7, a value
+    regression); normalised HL exact for any quadratic on the lattice (the
+    standard Laplacian's consistency), zero on linear fields."""
+    scene, x, pairs, interior = _lattice(
+        dim, WendlandWeight(), size=9 if dim == 2 else 8
+    )
+    c = np.array([0.7, -0.2, 1.3])[:dim]
+    quad = x**2 @ jnp.asarray(c) + 0.4 * x[:, 0] * x[:, 1] + x @ jnp.ones(dim)
+    r2 = jnp.sum(x**2, axis=1)
+    printed = HigherOrderLaplacian(normalised=False)(pairs, r2, scene)
+    normal = HigherOrderLaplacian(normalised=True)
+    if dim == 2:
+        np.testing.assert_allclose(printed[interior], 12.1737, rtol=1e-4)
+    np.testing.assert_allclose(normal(pairs, r2, scene)[interior], 2 * dim, rtol=1e-10)
+    np.testing.assert_allclose(
+        normal(pairs, quad, scene)[interior], 2 * c.sum(), rtol=1e-10
+    )
+    linear = x @ jnp.arange(1.0, dim + 1)
+    assert np.abs(np.asarray(normal(pairs, linear, scene))[interior]).max() < 1e-9
+    # Same consistency as the standard Laplacian; both give a vector field per axis.
+    std = StandardLaplacian()(pairs, jnp.stack([quad, r2], -1), scene)
+    np.testing.assert_allclose(std[interior, 1], 2 * dim, rtol=1e-10)
+
+
+@pytest.mark.parametrize("weight", [MPSWeight(), WendlandWeight()], ids=str)
+def test_density_rate_is_the_time_derivative_of_number_density(weight, rng):
+    """Digest T6: sum_j w'(r)(r.u)/r equals dn/dt for a random velocity field
+    (central difference of n along the motion)."""
+    scene, x, pairs, interior = _lattice(2, weight, jitter=0.15, rng=rng)
+    u = jnp.asarray(rng.normal(size=x.shape))
+    rate = np.asarray(density_rate(scene, pairs, u))
+    h = 1e-7
+    n = [
+        number_density(make_pairs(pairs.index, x + s * h * u, weight, scene.r_e))
+        for s in (1, -1)
+    ]
+    fd = np.asarray((n[0] - n[1]) / (2 * h))
+    np.testing.assert_allclose(rate[interior], fd[interior], rtol=1e-5, atol=1e-6)
+    # The printed HS divergence of (x, 0) on the lattice: 1.527, not 1 (digest §3.3).
+    lattice, xl, pl, inside = _lattice(2, WendlandWeight())
+    ux = jnp.stack([xl[:, 0], 0 * xl[:, 0]], -1)
+    div = -np.asarray(density_rate(lattice, pl, ux)) / lattice.n0
+    np.testing.assert_allclose(div[inside], 1.5272, rtol=1e-4)
+
+
+def test_dynamic_compensation_pushes_against_compression():
+    """Compressed (n > n0) and still compressing: S_ECS > 0, which lowers the
+    source and raises the pressure; expanding under compression: the two terms
+    oppose."""
+    scene, x, pairs, interior = _lattice(2, WendlandWeight())
+    inward = -(x - x.mean(axis=0, keepdims=True))
+    inputs = jaxmps.fluid.SourceInputs(
+        pairs=pairs,
+        n_star=number_density(pairs),
+        u_star=inward,
+        pairs_k=pairs,
+        n_k=number_density(pairs) * 1.01,
+        velocity_k=inward,
+        density=jnp.asarray(1000.0),
+        dt=jnp.asarray(1e-3),
+    )
+    s = np.asarray(DynamicCompensation()(scene, inputs))
+    assert np.all(s[interior] > 0)
+    expanding = eqx.tree_at(lambda s: s.velocity_k, inputs, -inward)
+    s2 = np.asarray(DynamicCompensation()(scene, expanding))
+    np.testing.assert_allclose(s2[interior], 0.0, atol=1e-9 * np.abs(s).max())
+
+
+def test_dynamic_stabilisation_restores_point_contact_and_momentum():
+    """Two fluid particles heading to 0.5 l0: the unweighted DS puts them back at
+    exactly alpha l0 along their step-k line and conserves momentum; against a
+    wall the fluid particle alone takes the whole correction."""
+    l0, dt = 0.01, 1e-3
+    x_k = jnp.array([[0.0, 0.0], [l0, 0.0]])
+    predicted = jnp.array([[0.25 * l0, 0.0], [0.75 * l0, 0.0]])
+    scene, _, _, _ = _lattice(2, WendlandWeight())
+    pairs = make_pairs(jnp.array([[1], [0]]), predicted, scene.weight, scene.r_e)
+    ds = DynamicStabilisation(weighted=False)
+    fluid = jnp.zeros(2, jnp.int32)
+    acc = ds(scene, pairs, x_k, predicted, fluid, jnp.ones(2, bool), jnp.asarray(dt))
+    after = predicted + dt**2 * acc
+    assert float(jnp.linalg.norm(after[1] - after[0])) == pytest.approx(0.9 * l0)
+    np.testing.assert_allclose(acc.sum(axis=0), 0.0, atol=1e-9)
+    wall = fluid.at[1].set(int(jaxmps.Kind.WALL))
+    acc = ds(scene, pairs, x_k, predicted, wall, jnp.ones(2, bool), jnp.asarray(dt))
+    after = predicted + dt**2 * acc
+    assert float(acc[1, 0]) == 0.0
+    assert float(after[1, 0] - after[0, 0]) == pytest.approx(0.9 * l0)
+    # Pairs farther than alpha l0 are left alone; weighted DS scales by w / n0.
+    far = jnp.array([[0.0, 0.0], [0.95 * l0, 0.0]])
+    pf = make_pairs(jnp.array([[1], [0]]), far, scene.weight, scene.r_e)
+    assert np.all(
+        ds(scene, pf, x_k, far, fluid, jnp.ones(2, bool), jnp.asarray(dt)) == 0.0
+    )
+    weighted = DynamicStabilisation()(
+        scene, pairs, x_k, predicted, fluid, jnp.ones(2, bool), jnp.asarray(dt)
+    )
+    ratio = float(pairs.weight[0, 0]) / scene.n0
+    unweighted = ds(
+        scene, pairs, x_k, predicted, fluid, jnp.ones(2, bool), jnp.asarray(dt)
+    )
+    np.testing.assert_allclose(weighted, ratio * unweighted, rtol=1e-12)
+
+
+def test_presets_and_their_errors():
+    ha = jaxmps.schemes.high_accuracy()
+    assert ha["r_e"] == 2.4 and isinstance(ha["weight"], WendlandWeight)
+    assert ha["solver"].stabiliser is not None
+    assert not ha["solver"].clamp_negative_pressure
+    assert not ha["gradient"].minimum_shift
+    off = jaxmps.schemes.high_accuracy(**jaxmps.schemes.LADDER["standard"])
+    std = jaxmps.schemes.standard()
+    assert {k: v for k, v in off.items() if k != "r_e"} == {
+        k: v for k, v in std.items() if k != "r_e"
+    }
+    with pytest.raises(ValueError, match="ecs=True needs hs=True"):
+        jaxmps.schemes.high_accuracy(hs=False)
+    with pytest.raises(ValueError, match="solver=semi_implicit"):
+        jaxmps.scenes.hydrostatic(scheme="high_accuracy", solver="explicit")
+    with pytest.raises(ValueError, match="scheme='fancy' is not available"):
+        jaxmps.scenes.hydrostatic(scheme="fancy")
+    with pytest.raises(ValueError, match="alpha"):
+        DynamicStabilisation(alpha=1.5)
+
+
+def test_seed_001_geometry_and_linear_theory():
+    """Digest T1-T3 and T19: resonances, standing-wave frequencies and the
+    thesis particle counts (1 wall + 2 dummy layers)."""
+    f = jaxmps.scenes.natural_frequency
+    assert f(0.5, 0.3, 1, 9.8) == pytest.approx(1.220419, abs=1e-6)
+    assert f(0.5, 0.3, 2, 9.8) == pytest.approx(2.163109, abs=1e-6)
+    assert f(0.45, 0.25, 1, 9.8) == pytest.approx(1.276909, abs=1e-6)
+    period = jaxmps.scenes.standing_wave_period(1.0, 0.5, 9.8)
+    assert 2 * math.pi / period == pytest.approx(7.8323, abs=1e-4)
+    for l0, count in [(0.01, 2028), (0.025, 462), (0.05, 180)]:
+        case = jaxmps.scenes.sloshing_tank(spacing=l0, scheme="high_accuracy")
+        assert int(case.state.active.sum()) == count
+    case = jaxmps.scenes.sloshing_tank(spacing=0.01)
+    assert case.config["resonances"] == pytest.approx([1.220419, 2.163109], abs=1e-6)
+
+
+def test_harmonic_excitation_waits_for_the_settling_time():
+    """Digest T18: walls at x0 until `settle`, then x0 + A sin(2 pi f (t - settle))."""
+    case = jaxmps.scenes.sloshing_tank(spacing=0.05, settle=0.1, amplitude=0.01)
+    dt = float(case.params.dt)
+    n = 2 * round(0.1 / dt)
+    tr = jaxmps.simulate(case.scene, case.params, case.state, n, n // 2)
+    idx = jnp.asarray(case.scene.motion.particles)
+    t = np.asarray(tr.saved.time)
+    x0 = np.asarray(case.state.position[idx, 0])
+    for k, tk in enumerate(t):
+        shift = 0.01 * math.sin(2 * math.pi * 1.220419 * (tk - 0.1)) if tk >= 0.1 else 0
+        np.testing.assert_allclose(
+            np.asarray(tr.saved.position[k][idx, 0]) - x0, shift, atol=1e-12
+        )
