@@ -8,6 +8,11 @@ For each solver ("semi_implicit", "explicit") and three resolutions of two test 
   Z = front/a, against Martin & Moyce 1952 (table series `mm_a2.25_tab`) and against
   SOLA-VOF (Hirt & Nichols 1981, series `openmps_vof_hirt_nichols1981`), both from
   `tests/data/*.csv` (interpolated linearly in T, as in `tests/test_validation.py`).
+* Standing wave (`jaxmps.scenes.standing_wave`, 0.4 m pool, 0.2 m deep, A = 2 cm,
+  spacing 0.02 / 0.01 / 0.005 m), run to 1.6 s (about three periods). Error =
+  |T / T_linear - 1| for the period T of the cos(2 pi x / L) surface mode (probe
+  `mode`, twice the mean spacing of its zero crossings); also reported: the mode's
+  amplitude after the run relative to A (numerical damping).
 * Hydrostatic tank (`jaxmps.scenes.hydrostatic`, 0.2 m x 0.2 m, spacing 0.02 / 0.01 /
   0.005 m), run to t = 1 s. `pressure_bottom` (mean pressure of the fluid within
   1.5 l0 of (width/2, l0/2)) is time-averaged over the saves with t >= 0.5 s, and
@@ -66,7 +71,11 @@ METHOD = {
 SPACINGS = {
     "dam_break": (0.0146, 0.0073, 0.00365),
     "hydrostatic": (0.02, 0.01, 0.005),
+    "standing_wave": (0.02, 0.01, 0.005),
 }
+# Standing wave (seed 001 §3.2 scaled down): 0.4 m pool, 0.2 m deep, A = 2 cm.
+WAVE = dict(tank_length=0.4, depth=0.2, tank_height=0.3, amplitude=0.02)
+T_END_WAVE = 1.6  # [s], about three periods
 T_CHECK = (1.0, 1.5, 2.0, 2.5)
 T_END_DAM = 2.6  # nondimensional end time of the dam break
 T_END_HYDRO = 1.0  # [s]
@@ -204,6 +213,8 @@ def _dam_break_errors(saved, a):
 def run_case(case_name: str, solver: str, spacing: float, args) -> dict:
     if case_name == "dam_break":
         case = jaxmps.scenes.dam_break(spacing=spacing, **METHOD[solver])
+    elif case_name == "standing_wave":
+        case = jaxmps.scenes.standing_wave(spacing=spacing, **WAVE, **METHOD[solver])
     else:
         case = jaxmps.scenes.hydrostatic(
             spacing=spacing, width=0.2, depth=0.2, **METHOD[solver]
@@ -224,6 +235,8 @@ def run_case(case_name: str, solver: str, spacing: float, args) -> dict:
         a = float(case.config["column_width"])
         t_end = T_END_DAM / math.sqrt(2 * G / a)
         save_dt = 0.025 / math.sqrt(2 * G / a)  # a save every ~0.025 in T
+    elif case_name == "standing_wave":
+        t_end, save_dt = T_END_WAVE, 0.005
     else:
         t_end = T_END_HYDRO
         save_dt = 0.01  # 100 saves per second
@@ -254,6 +267,22 @@ def run_case(case_name: str, solver: str, spacing: float, args) -> dict:
         record["column_width"] = a
         record.update(_dam_break_errors(saved, a))
         record["error"] = record["err_martin_moyce"]
+    elif case_name == "standing_wave":
+        t, mode = saved["time"], saved["mode"]
+        m = mode - mode.mean()
+        i = np.nonzero(np.sign(m[:-1]) != np.sign(m[1:]))[0]
+        crossings = t[i] - m[i] * (t[i + 1] - t[i]) / (m[i + 1] - m[i])
+        period = 2 * float(np.mean(np.diff(crossings))) if len(i) > 2 else math.nan
+        linear = float(case.config["linear_period"])
+        late = t > t[-1] - linear
+        record.update(
+            period=period,
+            linear_period=linear,
+            crossings=int(len(i)),
+            rel_period=period / linear - 1,
+            final_amplitude=float(np.abs(mode[late]).max() / WAVE["amplitude"]),
+        )
+        record["error"] = abs(record["rel_period"])
     else:
         l0, depth = spacing, float(case.config["depth"])
         late = saved["time"] >= 0.5 * T_END_HYDRO - 1e-9
@@ -361,6 +390,29 @@ def markdown(data: dict) -> str:
             vof = " / ".join(f"{100 * x:+.0f}" for x in r["rel_sola_vof"])
             lines.append(f"- {r['solver']}, {r['spacing']:g} m: {mm} %; {vof} %")
         lines.append("")
+    sw = [r for r in rows if r["case"] == "standing_wave"]
+    if sw:
+        lines += [
+            "## Standing wave 0.4 m x 0.2 m, A = 2 cm (to 1.6 s; period of the "
+            "cos(2 pi x / L) mode from its zero crossings)",
+            "",
+            "| method | spacing [m] | particles (fluid) | dt [ms] | steps "
+            "| period error | amplitude at the end / A | wall / sim. s [s] "
+            "| ms/step | particle-steps/s | compile [s] | result |",
+            "|---|---|---|---|---|---|---|---|---|---|---|---|",
+        ]
+        for r in sw:
+            lines.append(
+                f"| {r['solver']} | {r['spacing']:g} "
+                f"| {r['capacity']} ({r['n_fluid']}) "
+                f"| {1e3 * r['dt']:.3f} | {r['n_steps']} "
+                f"| {100 * r['rel_period']:+.2f} % | {r['final_amplitude']:.2f} "
+                f"| {r['wall_per_sim_s']:.3g} | {r['ms_per_step']:.2f} "
+                f"| {r['particle_steps_per_s']:.3g} "
+                f"| {r['trace_lower_s'] + r['compile_s']:.1f} "
+                f"| {'ok' if r['successful'] else r['result']} |"
+            )
+        lines.append("")
     hs = [r for r in rows if r["case"] == "hydrostatic"]
     if hs:
         lines += [
@@ -420,7 +472,9 @@ def plot(data: dict, path: Path):
 
     rows = data["rows"]
     cases = [
-        c for c in ("dam_break", "hydrostatic") if any(r["case"] == c for r in rows)
+        c
+        for c in ("dam_break", "hydrostatic", "standing_wave")
+        if any(r["case"] == c for r in rows)
     ]
     fig, axes = plt.subplots(
         1, len(cases), figsize=(5.5 * len(cases), 5.0), squeeze=False
@@ -433,6 +487,8 @@ def plot(data: dict, path: Path):
         "hydrostatic": "hydrostatic 0.2 m tank: "
         "|P_bottom / rho g (H - l0/2 - y_p) - 1|\n"
         "P_bottom averaged over 0.5-1 s; y_p = mean initial probe height",
+        "standing_wave": "standing wave 0.4 m x 0.2 m, A = 2 cm:\n"
+        "|T / T_linear - 1| of the surface mode over 1.6 s",
     }
     for ax, case in zip(axes[0], cases):
         for solver in SOLVERS:
@@ -517,8 +573,8 @@ def main(argv=None):
     p.add_argument(
         "--cases",
         nargs="+",
-        default=["dam_break", "hydrostatic"],
-        choices=["dam_break", "hydrostatic"],
+        default=["dam_break", "hydrostatic", "standing_wave"],
+        choices=["dam_break", "hydrostatic", "standing_wave"],
     )
     p.add_argument("--solvers", nargs="+", default=list(SOLVERS), choices=SOLVERS)
     p.add_argument(

@@ -140,7 +140,7 @@ SLOSHING_TANK = {
     "amplitude": 2.0e-3,
     "frequency": 1.220419,
     "settle": 2.0,
-    "slope": None,
+    "slope": 0.0,  # 0: rectangular; else horizontal run per unit rise
     "bottom_width": 0.3,
     "gravity": 9.8,
     "spacing": 0.01,
@@ -155,7 +155,7 @@ def sloshing_tank(**overrides) -> Case:
 
     Rectangular (default): `tank_length` 0.5 m, `depth` 0.3 m (seed 001 §3.3.1;
     linear resonances 1.2204 and 2.1631 Hz, see `natural_frequency`). With `slope`
-    (e.g. 1.5, seed 001 §3.3.2): a vertical left wall, a flat bottom of
+    > 0 (e.g. 1.5, seed 001 §3.3.2): a vertical left wall, a flat bottom of
     `bottom_width` and a right wall rising 1 : `slope`, `depth` 0.5 m is the
     Tomita (2016) tank; its slope wall is a lattice staircase (wall particles
     within l0 of the slope, dummies behind, measured normal to it).
@@ -163,11 +163,11 @@ def sloshing_tank(**overrides) -> Case:
     Probes: `eta_left` and `eta_right` (strip-volume elevation over 3 l0 next to
     each wall, following the tank); rectangular tank: `mode1`, `mode2` (amplitude
     of the surface modes cos(k x), k = pi/L and 3 pi/L, that the shaking
-    excites; see `ModeAmplitude`); sloped tank: `run_up` (sloped tank: highest fluid within
+    excites; see `ModeAmplitude`); sloped tank: `run_up` (highest fluid within
     1.5 l0 of the slope, above still water).
     """
     specific = dict(SLOSHING_TANK)
-    if overrides.get("slope") is not None:
+    if overrides.get("slope"):
         specific.update(depth=0.5, tank_height=0.85, frequency=0.64, amplitude=7.5e-3)
     c = resolve("sloshing_tank", specific, overrides)
     if int(c["dim"]) != 2:
@@ -178,7 +178,7 @@ def sloshing_tank(**overrides) -> Case:
         raise ValueError("settle must be >= 0 s.")
     strip = 3 * l0
     law = Harmonic(start=float(c["settle"]))
-    if c["slope"] is None:
+    if not c["slope"]:
         length = whole(c["tank_length"], l0)
         fluid = geometry.block([0.0, 0.0], [length, depth], l0)
         walls, wall_kind, _ = _open_tank(c, length, height, fluid)
