@@ -62,6 +62,11 @@ def make_scene(
     if position.ndim != 2 or position.shape[1] not in (2, 3):
         raise ValueError(f"position must have shape (m, 2|3), got {position.shape}.")
     m, dim = position.shape
+    if m == 0 and not capacity:
+        raise ValueError(
+            "make_scene got no particles (position is empty) and no pool "
+            "(`capacity`); place at least one particle, e.g. with jaxmps.geometry."
+        )
     capacity = m if capacity is None else int(capacity)
     if capacity < m:
         raise ValueError(f"capacity={capacity} is below the {m} initial particles.")

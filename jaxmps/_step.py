@@ -3,6 +3,7 @@
 import equinox as eqx
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 from . import bodies, fluid
 from ._params import Params
@@ -55,6 +56,30 @@ def check_compatible(scene: Scene, params: Params, state: State) -> None:
             f"Params.gravity has {params.gravity.shape[-1]} components; the Scene is "
             f"{scene.dim}-D."
         )
+    _check_finite(state)
+
+
+def _check_finite(state: State) -> None:
+    """Refuse a concrete initial State with non-finite positions or velocities of
+    active particles (inside jit or vmap the run-time `Result.nonfinite_state`
+    applies)."""
+    for name in ("position", "velocity"):
+        value = getattr(state, name)
+        if isinstance(value, jax.core.Tracer) or isinstance(
+            state.active, jax.core.Tracer
+        ):
+            return
+        finite = jnp.all(jnp.isfinite(value), axis=-1) | ~state.active
+        if bool(jnp.all(finite)):  # one scalar to the host
+            continue
+        bad = np.nonzero(~np.asarray(finite))
+        if bad[-1].size:
+            first = bad[-1][:5].tolist()
+            raise ValueError(
+                f"State.{name} is not finite for {bad[-1].size} active particle(s) "
+                f"(first indices {first}); fix the initial state, or restart from "
+                "the last good state of a run file (`jaxmps run --restart`)."
+            )
 
 
 def _step(scene: Scene, params: Params, state: State) -> tuple[State, StepInfo]:

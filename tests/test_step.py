@@ -112,11 +112,17 @@ def test_particle_leaving_domain_is_reported():
 def test_nonfinite_state_is_reported():
     scene, params, state = small_tank()
     bad = eqx.tree_at(lambda s: s.velocity, state, state.velocity.at[3].set(jnp.nan))
-    tr = jaxmps.simulate(scene, params, bad, 1, 1, throw=False)
-    assert tr.result != jaxmps.Result.successful
+    # A concrete initial state is refused before anything runs ...
+    with pytest.raises(ValueError, match=r"State.velocity is not finite .* \[3\]"):
+        jaxmps.simulate(scene, params, bad, 1, 1, throw=False)
+    # ... and inside a user's jit (traced state) the run-time result code applies.
+    run = jax.jit(lambda s: jaxmps.simulate(scene, params, s, 1, 1, throw=False))
+    assert run(bad).result != jaxmps.Result.successful
 
 
 def test_bad_inputs_raise_clear_errors():
+    with pytest.raises(ValueError, match="no particles"):
+        jaxmps.make_scene(np.zeros((0, 2)), 0.01, ([0, 0], [1, 1]))
     with pytest.raises(ValueError, match="Unknown scene"):
         jaxmps.scenes.build("dambreak")
     with pytest.raises(ValueError, match="Valid parameters"):
