@@ -112,7 +112,7 @@ def main():
         "fluid over the second half; momentum: max |sum u / N| over the run.",
         "",
         "| scheme | case | level drift [mm] | level range [mm] "
-        "| compression | max |mean u| [m/s] | result |",
+        "| compression | max abs(mean u) [m/s] | result |",
         "|---|---|---|---|---|---|---|",
     ]
     for r in rows:
