@@ -69,9 +69,11 @@ def _check_finite(state: State) -> None:
             state.active, jax.core.Tracer
         ):
             return
-        finite = jnp.all(jnp.isfinite(value), axis=-1) | ~state.active
-        if bool(jnp.all(finite)):  # one scalar to the host
-            continue
+        # Concrete arrays, possibly captured by a user's jit: evaluate eagerly.
+        with jax.ensure_compile_time_eval():
+            finite = jnp.all(jnp.isfinite(value), axis=-1) | ~state.active
+            if bool(jnp.all(finite)):  # one scalar to the host
+                continue
         bad = np.nonzero(~np.asarray(finite))
         if bad[-1].size:
             first = bad[-1][:5].tolist()
