@@ -27,7 +27,7 @@ import numpy as np
 from _common import loadavg, machine_info
 
 import jaxmps
-from jaxmps.operators import number_density
+from jaxmps.operators import make_pairs, number_density
 
 jax.config.update("jax_enable_x64", True)
 HERE = pathlib.Path(__file__).parent
@@ -48,10 +48,12 @@ class Observe(eqx.Module):
             .max(jnp.where(fluid, y, -jnp.inf))
         )
         level = jnp.mean(jnp.where(jnp.isfinite(tops), tops, 0.0)) + 0.5 * self.spacing
-        _, pairs = jaxmps.fluid._predict.neighbour_pairs(
-            scene, state.position, state.active
+        nbrs = jaxmps.neighbours.build(
+            scene.grid, state.position, state.active, scene.max_neighbours, scene.r_e
         )
-        n = number_density(pairs)
+        n = number_density(
+            make_pairs(nbrs.index, state.position, scene.weight, scene.r_e)
+        )
         inner = fluid & (n > 0.97 * scene.n0)
         compression = jnp.sum(jnp.where(inner, n / scene.n0 - 1, 0.0)) / jnp.sum(inner)
         count = jnp.sum(fluid)

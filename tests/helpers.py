@@ -33,3 +33,31 @@ def small_tank(width=0.1, depth=0.1, l0=0.01, **scene_kw):
     params = jaxmps.make_params(2, dt=1e-3)
     state = jaxmps.make_state(scene, pos, kind)
     return scene, params, state
+
+
+def lattice_pairs(dim, l0=1.0, size=9, jitter=0.0, rng=None, **scene_kw):
+    """A size^dim lattice (optionally jittered by +-jitter l0) and its pairs:
+    (scene, x, pairs, interior), `interior` marking points at least 3 l0 from the
+    edge (a full neighbourhood for r_e <= 3 l0)."""
+    import jax
+    import jax.numpy as jnp
+
+    from jaxmps.neighbours import build
+    from jaxmps.operators import make_pairs
+
+    x = block([0.0] * dim, [size * l0] * dim, l0)
+    if jitter:
+        x = x + rng.uniform(-jitter, jitter, x.shape) * l0
+    domain = (np.full(dim, -3 * l0), np.full(dim, (size + 3) * l0))
+    scene = jaxmps.make_scene(x, l0, domain, **scene_kw)
+    search = jax.jit(build, static_argnums=(0, 3, 4))
+    nbrs = search(
+        scene.grid,
+        jnp.asarray(x),
+        jnp.ones(len(x), bool),
+        scene.max_neighbours,
+        scene.r_e,
+    )
+    pairs = make_pairs(nbrs.index, jnp.asarray(x), scene.weight, scene.r_e)
+    interior = np.all((x > 3 * l0) & (x < (size - 3) * l0), axis=1)
+    return scene, x, pairs, interior

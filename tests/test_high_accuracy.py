@@ -9,11 +9,10 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from helpers import lattice_pairs
 
 import jaxmps
 from jaxmps.fluid import DynamicCompensation, DynamicStabilisation, density_rate
-from jaxmps.geometry import block
-from jaxmps.neighbours import build
 from jaxmps.operators import (
     EMPSWeight,
     HigherOrderLaplacian,
@@ -29,38 +28,18 @@ WEIGHTS = [MPSWeight(), WendlandWeight(), EMPSWeight()]
 
 
 def _lattice(dim, weight, l0=0.01, size=9, jitter=0.0, rng=None, r_e=2.4):
-    x = block([0.0] * dim, [size * l0] * dim, l0)
-    if jitter:
-        x = x + rng.uniform(-jitter, jitter, x.shape) * l0
-    else:
+    if not jitter:
         return _regular_lattice(dim, weight, l0, size, r_e)
-    return _pairs_of(x, dim, weight, l0, size, r_e)
+    return _as_jax(lattice_pairs(dim, l0, size, jitter, rng, r_e=r_e, weight=weight))
 
 
 @functools.lru_cache
 def _regular_lattice(dim, weight, l0, size, r_e):
-    x = block([0.0] * dim, [size * l0] * dim, l0)
-    return _pairs_of(x, dim, weight, l0, size, r_e)
+    return _as_jax(lattice_pairs(dim, l0, size, r_e=r_e, weight=weight))
 
 
-def _pairs_of(x, dim, weight, l0, size, r_e):
-    scene = jaxmps.make_scene(
-        x,
-        l0,
-        (np.full(dim, -3 * l0), np.full(dim, (size + 3) * l0)),
-        r_e=r_e,
-        weight=weight,
-    )
-    search = jax.jit(build, static_argnums=(0, 3, 4))
-    nbrs = search(
-        scene.grid,
-        jnp.asarray(x),
-        jnp.ones(len(x), bool),
-        scene.max_neighbours,
-        scene.r_e,
-    )
-    pairs = make_pairs(nbrs.index, jnp.asarray(x), scene.weight, scene.r_e)
-    interior = np.all((x > 3 * l0) & (x < (size - 3) * l0), axis=1)
+def _as_jax(lattice):
+    scene, x, pairs, interior = lattice
     return scene, jnp.asarray(x), pairs, interior
 
 

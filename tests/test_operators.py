@@ -2,9 +2,9 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from helpers import lattice_pairs
 
 import jaxmps
-from jaxmps.geometry import block
 from jaxmps.neighbours import build
 from jaxmps.operators import (
     CorrectedGradient,
@@ -43,20 +43,7 @@ def test_weight_finite_value_and_gradient_at_zero_and_padding():
 
 
 def _lattice(dim, l0=1.0, size=9, jitter=0.0, rng=None):
-    x = block([0.0] * dim, [size * l0] * dim, l0)
-    if jitter:
-        x = x + rng.uniform(-jitter, jitter, x.shape) * l0
-    scene = jaxmps.make_scene(x, l0, (np.full(dim, -3.0), np.full(dim, size + 3.0)))
-    nbrs = build(
-        scene.grid,
-        jnp.asarray(x),
-        jnp.ones(len(x), bool),
-        scene.max_neighbours,
-        scene.r_e,
-    )
-    pairs = make_pairs(nbrs.index, jnp.asarray(x), scene.weight, scene.r_e)
-    interior = np.all((x > 3.0) & (x < size - 3.0), axis=1)
-    return scene, x, pairs, interior
+    return lattice_pairs(dim, l0, size, jitter, rng)
 
 
 @pytest.mark.parametrize("dim", [2, 3])

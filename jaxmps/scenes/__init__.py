@@ -17,7 +17,6 @@ from ._flume import flume as flume
 from ._hydrostatic import DEFAULTS as _HYDROSTATIC
 from ._hydrostatic import hydrostatic as hydrostatic
 from ._probes import AbstractProbe as AbstractProbe
-from ._probes import AnchoredStripLevel as AnchoredStripLevel
 from ._probes import BodyValue as BodyValue
 from ._probes import FluidPressureNear as FluidPressureNear
 from ._probes import FrontPosition as FrontPosition

@@ -122,6 +122,8 @@ class StripLevel(AbstractProbe):
     With `softness` > 0 the strip edges are smoothed over `softness` x l0 (each
     particle counts sigmoid((width/2 - |x_j - x|) / (softness l0))), so the probe
     is a differentiable function of the positions: use it as a calibration target.
+    With `anchor`, `x` is in the frame of that (moving) wall particle, initially at
+    x = `anchor_x`: a gauge fixed to a shaken tank.
     """
 
     name: str
@@ -130,17 +132,29 @@ class StripLevel(AbstractProbe):
     spacing: float
     still_depth: float
     softness: float = 0.0
+    anchor: int | None = None
+    anchor_x: float = 0.0
 
     def __call__(self, scene, state):
         del scene
         fluid = jnp.logical_and(state.active, state.kind == int(Kind.FLUID))
-        inside = 0.5 * self.width - jnp.abs(state.position[:, 0] - self.x)
+        x = _tank_frame(state, self.anchor, self.anchor_x)
+        inside = 0.5 * self.width - jnp.abs(x - self.x)
         if self.softness > 0:
             weight = jax.nn.sigmoid(inside / (self.softness * self.spacing))
         else:
             weight = (inside > 0).astype(state.position.dtype)
         area = jnp.sum(jnp.where(fluid, weight, 0.0)) * self.spacing**2
         return area / self.width - self.still_depth
+
+
+def _tank_frame(state, anchor: int | None, anchor_x: float):
+    """Particle x in the frame that moves with particle `anchor` (initially at
+    `anchor_x`); the lab frame when `anchor` is None."""
+    x = state.position[:, 0]
+    if anchor is None:
+        return x
+    return x - (state.position[anchor, 0] - anchor_x)
 
 
 class BodyValue(AbstractProbe):
@@ -209,25 +223,6 @@ class WallForce(AbstractProbe):
         return jnp.sum(jnp.where(wall, state.pressure, 0.0)) * area
 
 
-class AnchoredStripLevel(AbstractProbe):
-    """`StripLevel` whose strip centre follows a (moving) wall particle: x =
-    position[anchor, 0] + `offset` (a gauge fixed to a shaken tank)."""
-
-    name: str
-    anchor: int
-    offset: float
-    width: float
-    spacing: float
-    still_depth: float
-
-    def __call__(self, scene, state):
-        x = state.position[self.anchor, 0] + self.offset
-        fluid = jnp.logical_and(state.active, state.kind == int(Kind.FLUID))
-        inside = jnp.abs(state.position[:, 0] - x) < 0.5 * self.width
-        count = jnp.sum(fluid & inside, dtype=state.position.dtype)
-        return count * self.spacing**2 / self.width - self.still_depth
-
-
 class RunUp(AbstractProbe):
     """Run-up on a slope rising 1 : `slope` from x = `toe` (tank frame): the highest
     fluid particle within `band` of the slope surface, above `still_depth` [m].
@@ -242,8 +237,7 @@ class RunUp(AbstractProbe):
     still_depth: float
 
     def __call__(self, scene, state):
-        shift = state.position[self.anchor, 0] - self.anchor_x
-        x = state.position[:, 0] - shift - self.toe
+        x = _tank_frame(state, self.anchor, self.anchor_x) - self.toe
         y = state.position[:, 1]
         gap = (y * self.slope - x) / jnp.sqrt(1.0 + self.slope**2)
         fluid = jnp.logical_and(state.active, state.kind == int(Kind.FLUID))
@@ -269,8 +263,5 @@ class ModeAmplitude(AbstractProbe):
 
     def __call__(self, scene, state):
         fluid = jnp.logical_and(state.active, state.kind == int(Kind.FLUID))
-        x = state.position[:, 0]
-        if self.anchor is not None:
-            x = x - (state.position[self.anchor, 0] - self.anchor_x)
-        c = jnp.cos(self.wave_number * x)
+        c = jnp.cos(self.wave_number * _tank_frame(state, self.anchor, self.anchor_x))
         return 2.0 / self.length * jnp.sum(jnp.where(fluid, c, 0.0)) * self.spacing**2

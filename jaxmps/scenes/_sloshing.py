@@ -18,7 +18,7 @@ from ._common import (
     velocity_scale,
     whole,
 )
-from ._probes import AnchoredStripLevel, ModeAmplitude, RunUp, StripLevel
+from ._probes import ModeAmplitude, RunUp, StripLevel
 
 
 def natural_frequency(length: float, depth: float, mode: int, gravity: float):
@@ -35,11 +35,10 @@ def standing_wave_period(length: float, depth: float, gravity: float) -> float:
     return 2 * math.pi / math.sqrt(gravity * k * math.tanh(k * depth))
 
 
-def _open_tank(c, length, height, fluid):
-    l0 = c["spacing"]
+def _open_tank(c, length, height):
+    """Wall + dummy particles of an open rectangular tank [0, length] x [0, height]."""
     layers = boundary_layers(c)
-    walls, wall_kind = geometry.tank([0.0, 0.0], [length, height], l0, layers=layers)
-    return walls, wall_kind, layers
+    return geometry.tank([0.0, 0.0], [length, height], c["spacing"], layers=layers)
 
 
 STANDING_WAVE = {
@@ -77,7 +76,7 @@ def standing_wave(**overrides) -> Case:
     grid = geometry.block([0.0, 0.0], [length, height], l0)
     surface = depth + amp * np.cos(2 * math.pi * grid[:, 0] / length)
     fluid = grid[grid[:, 1] < surface]
-    walls, wall_kind, _ = _open_tank(c, length, height, fluid)
+    walls, wall_kind = _open_tank(c, length, height)
     scene, params, state = _assemble(c, fluid, walls, wall_kind, height, depth)
     strip = 3 * l0
     probes = (
@@ -181,25 +180,20 @@ def sloshing_tank(**overrides) -> Case:
     if not c["slope"]:
         length = whole(c["tank_length"], l0)
         fluid = geometry.block([0.0, 0.0], [length, depth], l0)
-        walls, wall_kind, _ = _open_tank(c, length, height, fluid)
+        walls, wall_kind = _open_tank(c, length, height)
         scene, params, state = _assemble(
             c, fluid, walls, wall_kind, height, depth, motion=law
         )
         n_fluid = len(fluid)
-        right = n_fluid + _nearest(walls, [length + 0.5 * l0, 0.5 * depth])
+        wall_x = -0.5 * l0  # the left wall's pressure layer; every wall moves with it
+        anchor = n_fluid + _nearest(walls, [wall_x, 0.5 * depth])
+        frame = dict(anchor=anchor, anchor_x=wall_x)
         probes = (
-            _wall_strip("eta_left", n_fluid, walls, [-0.5 * l0, 0.5 * depth], l0),
-            AnchoredStripLevel(
-                "eta_right", right, -(0.5 * l0 + 0.5 * strip), strip, l0, depth
-            ),
+            StripLevel("eta_left", 0.5 * strip, strip, l0, depth, **frame),
+            StripLevel("eta_right", length - 0.5 * strip, strip, l0, depth, **frame),
             *(
                 ModeAmplitude(
-                    f"mode{m}",
-                    (2 * m - 1) * math.pi / length,
-                    length,
-                    l0,
-                    anchor=right,
-                    anchor_x=length + 0.5 * l0,
+                    f"mode{m}", (2 * m - 1) * math.pi / length, length, l0, **frame
                 )
                 for m in (1, 2)
             ),
@@ -218,9 +212,7 @@ def sloshing_tank(**overrides) -> Case:
             raise ValueError("slope must be positive (horizontal run per unit rise).")
         length = whole(base + s * height, l0)
         layers = boundary_layers(c)
-        walls, wall_kind = geometry.tank(
-            [0.0, 0.0], [length, height], l0, layers=layers
-        )
+        walls, wall_kind = _open_tank(c, length, height)
         keep = walls[:, 0] < base  # left wall and the bed under the flat bottom
         walls, wall_kind = walls[keep], wall_kind[keep]
         grid = geometry.block(
@@ -241,17 +233,19 @@ def sloshing_tank(**overrides) -> Case:
             c, fluid, walls, wall_kind, height, depth, motion=law
         )
         n_fluid = len(fluid)
+        wall_x = -0.5 * l0
+        anchor = n_fluid + _nearest(walls, [wall_x, 0.5 * depth])
         probes = (
-            _wall_strip("eta_left", n_fluid, walls, [-0.5 * l0, 0.5 * depth], l0),
-            RunUp(
-                "run_up",
-                n_fluid + _nearest(walls, [-0.5 * l0, 0.5 * depth]),
-                -0.5 * l0,
-                base,
-                s,
-                1.5 * l0,
+            StripLevel(
+                "eta_left",
+                0.5 * strip,
+                strip,
+                l0,
                 depth,
+                anchor=anchor,
+                anchor_x=wall_x,
             ),
+            RunUp("run_up", anchor, wall_x, base, s, 1.5 * l0, depth),
         )
         config = {**c, "depth": depth, "bottom_width": base}
     return Case(
@@ -267,11 +261,3 @@ def sloshing_tank(**overrides) -> Case:
 
 def _nearest(points, target) -> int:
     return int(np.argmin(np.linalg.norm(points - np.asarray(target), axis=1)))
-
-
-def _wall_strip(name, n_fluid, walls, at, l0):
-    """Strip-volume elevation over 3 l0 next to the left wall, which moves."""
-    anchor = n_fluid + _nearest(walls, at)
-    strip = 3 * l0
-    depth = 2 * at[1]
-    return AnchoredStripLevel(name, anchor, 0.5 * l0 + 0.5 * strip, strip, l0, depth)
