@@ -63,25 +63,22 @@ def _check_finite(state: State) -> None:
     """Refuse a concrete initial State with non-finite positions or velocities of
     active particles (inside jit or vmap the run-time `Result.nonfinite_state`
     applies)."""
-    for name in ("position", "velocity"):
-        value = getattr(state, name)
-        if isinstance(value, jax.core.Tracer) or isinstance(
-            state.active, jax.core.Tracer
-        ):
-            return
-        # Concrete arrays, possibly captured by a user's jit: evaluate eagerly.
+    fields = {"position": state.position, "velocity": state.velocity}
+    if any(isinstance(v, jax.core.Tracer) for v in (*fields.values(), state.active)):
+        return
+    for name, value in fields.items():
+        # Concrete arrays, possibly captured by a user's jit: evaluate eagerly and
+        # bring one scalar to the host unless something is wrong.
         with jax.ensure_compile_time_eval():
             finite = jnp.all(jnp.isfinite(value), axis=-1) | ~state.active
-            if bool(jnp.all(finite)):  # one scalar to the host
+            if bool(jnp.all(finite)):
                 continue
-        bad = np.nonzero(~np.asarray(finite))
-        if bad[-1].size:
-            first = bad[-1][:5].tolist()
-            raise ValueError(
-                f"State.{name} is not finite for {bad[-1].size} active particle(s) "
-                f"(first indices {first}); fix the initial state, or restart from "
-                "the last good state of a run file (`jaxmps run --restart`)."
-            )
+        bad = np.nonzero(~np.asarray(finite))[-1]
+        raise ValueError(
+            f"State.{name} is not finite for {bad.size} active particle(s) "
+            f"(first indices {bad[:5].tolist()}); fix the initial state, or restart "
+            "from the last good state of a run file (`jaxmps run --restart`)."
+        )
 
 
 def _step(scene: Scene, params: Params, state: State) -> tuple[State, StepInfo]:
