@@ -39,6 +39,7 @@ def make_scene(
     max_neighbours: int | None = None,
     cell_capacity: int | None = None,
     courant_limit: float = 0.5,
+    viscous_limit: float = 1.0,
 ) -> Scene:
     """Build a Scene for the initial particle positions.
 
@@ -54,6 +55,8 @@ def make_scene(
         neighbour_margin: `max_neighbours` = ceil(margin x lattice neighbour count).
         cell_margin: `cell_capacity` = ceil(margin x the fullest cell initially).
         max_neighbours, cell_capacity: explicit values override the margins.
+        courant_limit, viscous_limit: stability limits checked every step (see
+            `Scene`); `viscous_limit=math.inf` switches the viscous check off.
 
     Returns:
         The Scene, with n0 and lambda of the regular lattice (DESIGN.md §7).
@@ -109,6 +112,7 @@ def make_scene(
         grid=grid,
         max_neighbours=int(max_neighbours),
         courant_limit=float(courant_limit),
+        viscous_limit=float(viscous_limit),
         weight=weight,
         laplacian=laplacian,
         gradient=gradient,

@@ -100,8 +100,9 @@ def run(
 
     Raises:
         RuntimeError: if the run failed (the message of its `jaxmps.Result` and the
-            simulated time); what was computed is written first, and `/state` keeps
-            the last successful state.
+            simulated time); what was computed is written first: every frame up to
+            the failure, and in `/state` the state of the last successful save,
+            which a restart continues from.
         ValueError: for inconsistent arguments or an unusable restart file.
     """
     started = _time.perf_counter()
@@ -127,7 +128,9 @@ def run(
         state = load_state(restart_from, case)
         append = out is not None and out.resolve() == restart_from.resolve()
     done = int(np.asarray(state.step))
-    remaining = total_steps - done
+    # On restart: the steps left to t_end at this dt (the restart may change dt).
+    t_now = float(np.asarray(state.time))
+    remaining = total_steps if restart_from is None else round((t_end - t_now) / dt)
     n_saves = math.ceil(max(0, remaining) / steps_per_save)
     chunk = _largest_divisor(n_saves, int(chunk_saves)) if n_saves else 0
 
@@ -189,6 +192,21 @@ def run(
                     writer.append_frames(fr, step=steps)
                     writer.append_probes(values)
                 if failed:
+                    if keep > 1:
+                        # The last good state is that of the last successful save:
+                        # replay those saves of the chunk (the rollout is
+                        # deterministic) so that a restart continues from there.
+                        state = simulate(
+                            case.scene,
+                            case.params,
+                            state,
+                            (keep - 1) * steps_per_save,
+                            steps_per_save,
+                            observe=observer,
+                            throw=False,
+                        ).state
+                        if writer is not None:
+                            writer.write_state(state)
                     t_fail = float(np.asarray(fr.time)[-1])
                     t_good = float(np.asarray(state.time))
                     message = Result[trajectory.result]

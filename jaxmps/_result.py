@@ -41,7 +41,8 @@ class Result(eqx.Enumeration):
     )
     step_too_large = (
         "The time step is beyond a stability limit: the Courant number max|u| dt / l0 "
-        "exceeded `Scene.courant_limit`, or (explicit solver) c dt / l0 exceeded "
+        "exceeded `Scene.courant_limit`, the viscous number 2 d nu dt / lambda "
+        "exceeded `Scene.viscous_limit`, or (explicit solver) c dt / l0 exceeded "
         "`Explicit.sound_courant`. Reduce `dt` (scene override `dt=...`)."
     )
 

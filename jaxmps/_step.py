@@ -21,6 +21,7 @@ def check_compatible(scene: Scene, params: Params, state: State) -> None:
             f"State holds {n} particles in {d}-D but the Scene expects "
             f"{scene.capacity} in {scene.dim}-D; build both from the same case."
         )
+    _check_params_shapes(scene, params)
     scene.solver.check_params(scene, params)
     if (scene.inflow is None) != (params.inflow is None):
         raise ValueError(
@@ -40,23 +41,60 @@ def check_compatible(scene: Scene, params: Params, state: State) -> None:
     if scene.rigid is not None:
         b = scene.rigid.count
         shapes = {
-            "Params.rigid.density": params.rigid.density.shape[-1:],
-            "Params.rigid.mu_static": params.rigid.mu_static.shape[-1:],
-            "Params.rigid.mu_kinetic": params.rigid.mu_kinetic.shape[-1:],
+            "Params.rigid.density": params.rigid.density.shape,
+            "Params.rigid.mu_static": params.rigid.mu_static.shape,
+            "Params.rigid.mu_kinetic": params.rigid.mu_kinetic.shape,
             "State.rigid.centre": state.rigid.centre.shape[-2:-1],
         }
         for name, shape in shapes.items():
             if shape != (b,):
                 raise ValueError(
-                    f"{name} has {shape[0] if shape else 0} entries along its body "
-                    f"axis but the Scene has {b} rigid bodies."
+                    f"{name} has shape {shape} but the Scene has {b} rigid bodies "
+                    f"(expected ({b},)). For a batch of values use `jaxmps.sweep` "
+                    "or `jax.vmap` over Params."
                 )
-    if params.gravity.shape[-1] != scene.dim:
-        raise ValueError(
-            f"Params.gravity has {params.gravity.shape[-1]} components; the Scene is "
-            f"{scene.dim}-D."
-        )
+    _check_viscous_limit(scene, params)
     _check_finite(state)
+
+
+def _check_params_shapes(scene: Scene, params: Params) -> None:
+    """One parameter set: scalars, and gravity with one component per axis (inside
+    `vmap` the shapes seen here are those of one batch member)."""
+    expected = {name: () for name in ("density", "viscosity", "dt", "beta")}
+    expected["sound_speed"] = ()
+    expected["gravity"] = (scene.dim,)
+    for name, shape in expected.items():
+        got = tuple(getattr(params, name).shape)
+        if got != shape:
+            hint = (
+                f"the Scene is {scene.dim}-D"
+                if name == "gravity" and len(got) == 1
+                else "simulate takes one parameter set; for a batch of values use "
+                "`jaxmps.sweep` or `jax.vmap` over Params"
+            )
+            raise ValueError(
+                f"Params.{name} has shape {got}, expected {shape}: {hint}."
+            )
+
+
+def _check_viscous_limit(scene: Scene, params: Params) -> None:
+    """Refuse concrete (dt, viscosity) beyond `Scene.viscous_limit` (ValueError);
+    traced values are checked every step instead (`Result.step_too_large`)."""
+    values = (params.dt, params.viscosity)
+    if any(isinstance(v, jax.core.Tracer) for v in values):
+        return
+    dt, nu = (np.asarray(v, dtype=float) for v in values)
+    number = np.max(2 * scene.dim * nu * dt / scene.lam)
+    if number > scene.viscous_limit:
+        worst = float(np.max(nu))
+        raise ValueError(
+            f"dt={float(np.max(dt)):.4g} s with viscosity={worst:.4g} m^2/s exceeds "
+            "the viscous stability limit 2 d nu dt / lambda <= "
+            f"{scene.viscous_limit:g} "
+            f"(dt <= {scene.max_viscous_dt(worst):.4g} s at this viscosity and "
+            f"spacing {scene.spacing:g} m). Reduce `dt` or `viscosity`, or raise "
+            "`make_scene(viscous_limit=...)` at your own risk."
+        )
 
 
 def _check_finite(state: State) -> None:
@@ -107,6 +145,7 @@ def _step(scene: Scene, params: Params, state: State) -> tuple[State, StepInfo]:
         mobile = jnp.logical_and(new.active, is_kind(new.kind, MOBILE_KINDS))
         speed = jnp.sqrt(jnp.sum(new.velocity**2, axis=-1))
         courant = jnp.max(jnp.where(mobile, speed, 0.0)) * params.dt / scene.spacing
+        viscous = 2 * scene.dim * params.viscosity * params.dt / scene.lam
         finite = jnp.all(
             jnp.where(
                 new.active,
@@ -125,7 +164,9 @@ def _step(scene: Scene, params: Params, state: State) -> tuple[State, StepInfo]:
         result = update_result(result, info.outside, Result.left_domain)
         result = update_result(
             result,
-            (courant > scene.courant_limit) | info.unstable,
+            (courant > scene.courant_limit)
+            | (viscous > scene.viscous_limit)
+            | info.unstable,
             Result.step_too_large,
         )
         result = update_result(

@@ -57,17 +57,23 @@ def _cmd_run(args) -> int:
     except ValueError as e:
         print(f"jaxmps run: error: {e}", file=sys.stderr)
         return 2
-    out = Path(args.out) if args.out else Path(f"{args.scene}.h5")
+    restart = args.restart is not None
+    source = Path(args.restart) if args.restart else None  # --restart RUN.h5
+    if args.out:
+        out = Path(args.out)
+    else:
+        out = source if source is not None else Path(f"{args.scene}.h5")
+    source = out if restart and source is None else source
     scene = args.scene
-    if args.restart:
-        if not out.exists():
+    if restart:
+        if not source.exists():
             print(
-                f"jaxmps run: error: --restart: '{out}' does not exist.",
+                f"jaxmps run: error: --restart: '{source}' does not exist.",
                 file=sys.stderr,
             )
             return 2
         try:
-            data = read_run(out)
+            data = read_run(source)
         except ValueError as e:
             print(f"jaxmps run: error: {e}", file=sys.stderr)
             return 2
@@ -82,7 +88,7 @@ def _cmd_run(args) -> int:
     print(
         f"jaxmps: {case.name}, {n} particles, dt={float(case.params.dt):.4g} s, "
         f"t_end={args.t_end if args.t_end is not None else case.t_end:g} s"
-        + (" (restart)" if args.restart else "")
+        + (f" (restart from {source})" if restart else "")
     )
     try:
         result = run(
@@ -91,7 +97,7 @@ def _cmd_run(args) -> int:
             out=out,
             save_every=args.save_every,
             progress=not args.quiet,
-            restart=args.restart,
+            restart_from=source,
         )
     except RuntimeError as e:
         print(f"jaxmps run: {e}", file=sys.stderr)
@@ -238,8 +244,12 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--x64", action="store_true", help="run in float64")
     p.add_argument(
         "--restart",
-        action="store_true",
-        help="continue the run in --out from its last state",
+        nargs="?",
+        const="",
+        default=None,
+        metavar="RUN.h5",
+        help="continue RUN.h5 (default: --out) from its last good state, appending "
+        "to it (or writing --out when given); --set changes settings",
     )
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p = sub.add_parser("info", help="what a run file holds")

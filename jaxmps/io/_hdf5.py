@@ -88,7 +88,8 @@ def _open_checked(path: str | os.PathLike, mode: str = "r") -> h5py.File:
         f = h5py.File(path, mode)
     except OSError as e:
         raise ValueError(
-            f"'{path}' is not a jaxmps run file: it cannot be opened as HDF5 ({e})."
+            f"'{path}' cannot be read as a jaxmps run file: HDF5 cannot open it, so "
+            f"it is truncated, corrupt or not HDF5 ({e})."
         ) from None
     try:
         fmt = f.attrs.get("format")
@@ -180,6 +181,11 @@ class RunWriter:
                     f"'{self.path}' holds {n} particles but the case has "
                     f"{case.state.position.shape[0]}: it is not a run of this case."
                 )
+            # The settings now in force (a restart may change them) are the ones a
+            # later restart continues with.
+            self.file.attrs["dt"] = self.dt
+            del self.file["config"]
+            self.file.create_dataset("config", data=config_json(case.config))
             return
         self.path.parent.mkdir(parents=True, exist_ok=True)
         self.file = h5py.File(self.path, "w")

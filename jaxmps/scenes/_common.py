@@ -42,6 +42,8 @@ def resolve(name: str, specific: dict[str, Any], overrides: dict[str, Any]) -> d
             f"Unknown parameter(s) {unknown} for scene '{name}'. Valid parameters: "
             f"{', '.join(sorted(defaults))}."
         )
+    for key, value in overrides.items():
+        _check_type(name, key, defaults[key], value)
     config = {**defaults, **overrides}
     if config["solver"] not in SOLVERS:
         raise ValueError(
@@ -61,6 +63,38 @@ def resolve(name: str, specific: dict[str, Any], overrides: dict[str, Any]) -> d
     if not config["spacing"] > 0:
         raise ValueError("spacing must be positive.")
     return config
+
+
+# Parameters counted in whole numbers (None: derived).
+_WHOLE = ("dim", "max_iterations", "max_neighbours", "cell_capacity", "pool")
+
+
+def _check_type(scene: str, key: str, default: Any, value: Any) -> None:
+    """An override has the type of its default: a flag, a word, or a number (whole
+    for counts); None only where the default is None (derived)."""
+    number = isinstance(value, (int, float, np.integer, np.floating)) and not (
+        isinstance(value, (bool, np.bool_))
+    )
+    if isinstance(default, bool):
+        ok, want = isinstance(value, (bool, np.bool_)), "true or false"
+    elif isinstance(default, str):
+        ok, want = isinstance(value, str), "a word"
+    elif key in _WHOLE:
+        ok = (number and float(value) == int(value)) or (
+            default is None and value is None
+        )
+        want = "a whole number" + (" or None" if default is None else "")
+    else:
+        ok = number or (default is None and value is None)
+        want = "a number" + (" or None (derived)" if default is None else "")
+    if not ok:
+        raise ValueError(
+            f"Parameter {key!r} of scene '{scene}' expects {want}, got {value!r} "
+            f"({type(value).__name__}); e.g. `--set {key}={default}`."
+            if default is not None
+            else f"Parameter {key!r} of scene '{scene}' expects {want}, got {value!r} "
+            f"({type(value).__name__})."
+        )
 
 
 def default_dt(config: dict, velocity_scale: float) -> float:
