@@ -1,0 +1,663 @@
+"""Side by side: `jaxmps` vs JAX-SPH (weakly compressible SPH) on a 2-D dam break.
+
+Both codes run the same dam break (a 0.146 x 0.292 m water column at the left wall
+of a 0.584 m tank, 0.438 m high) at matched total particle counts (fluid + walls,
+dummies included) of about 7 k, 25 k and 90 k:
+
+* JAX-SPH 0.1.0 (PyPI `jax-sph`): its WCSPH solver with its own dam-break settings
+  (density evolution, artificial viscosity 0.1, generalized wall BC, quintic spline
+  kernel, 3 wall layers, closed tank, dt from its CFL rule), set up against its
+  public API in `_jaxsph_worker.py`, dx = 0.146 m / n, n = 49 / 102 / 202 (6896 /
+  25128 / 90128 particles). The steps, including the neighbour-list update, are
+  rolled out with `jax.lax.scan`.
+* jaxmps: `jaxmps.scenes.dam_break(spacing=0.146 m / m, solver=...)` with the
+  whole number m of particles across the column that brings `scene.capacity`
+  nearest to JAX-SPH's count; rolled out with `jaxmps.simulate(..., throw=False)`
+  and an observe function that saves only the time.
+
+JAX-SPH needs Python <= 3.11.0 and pins jax 0.4.29, so it runs in its own virtual
+environment (created on first use under `--peer-venv`, default
+`benchmarks/.venv-jaxsph`, from `--peer-python` or the first python3.10 / 3.9 /
+~/.pyenv/versions/3.10* found; `pip install jax-sph==0.1.0`). If none can be made
+the script says why and measures jaxmps only.
+
+Every (code, dtype, size) runs in a fresh subprocess, alternating jaxmps and JAX-SPH
+(per size: jaxmps float64, JAX-SPH float64, jaxmps float32, JAX-SPH float32, ...),
+so that background load hits both. In each: compile time (trace + lower, XLA
+compile) via `.lower(...).compile()`, then one untimed warm-up call and the best of
+`--repeats` timed calls of `--steps` steps, each ended by `jax.block_until_ready`;
+particle-steps/s = particles x steps / run time, wall time per simulated second =
+run time / (steps x dt) (the codes' dt differ), and the peak RSS of the subprocess.
+
+Usage:
+    python benchmarks/side_by_side.py                          # 7k and 25k, 200 steps
+    python benchmarks/side_by_side.py --sizes 7k --steps 20 --out /tmp/quick
+    python benchmarks/side_by_side.py --sizes 7k 25k 90k --dtypes float64
+    python benchmarks/side_by_side.py --peer-venv /path/to/venv --solvers explicit
+
+Writes `benchmarks/results/side_by_side_<backend>.json` and `.md` (override with
+`--out`, a path without extension).
+"""
+
+import argparse
+import glob
+import json
+import re
+import shutil
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+WORKER = HERE / "_jaxsph_worker.py"
+COLUMN_WIDTH = 0.146  # m, as jaxmps.scenes.dam_break's default
+JAX_SPH_VERSION = "0.1.0"
+SIZES = {"7k": 7_000, "25k": 25_000, "90k": 90_000}
+
+
+# ----------------------------------------------------------------------------- sizes
+
+
+def jaxsph_count(n: int) -> int:
+    """Particles of the JAX-SPH case with n across the column: the column (n x 2n)
+    and a closed tank (4n x 3n inside) with 3 wall layers all round."""
+    return 2 * n * n + 2 * 3 * (3 * n + 2 * 3) + 2 * 3 * 4 * n
+
+
+def parse_size(text: str) -> int:
+    """'7k' -> 7000, '25000' -> 25000."""
+    m = re.fullmatch(r"\s*(\d+(?:\.\d+)?)\s*([kK]?)\s*", text)
+    if not m:
+        raise argparse.ArgumentTypeError(f"size {text!r}: use e.g. 7k or 25000")
+    return int(round(float(m.group(1)) * (1000 if m.group(2) else 1)))
+
+
+def jaxsph_n_across(target: int) -> int:
+    """n across the column whose JAX-SPH particle count is nearest `target`."""
+    n = max(2, int((target / 2) ** 0.5))
+    candidates = range(max(2, n - 30), n + 30)
+    return min(candidates, key=lambda k: abs(jaxsph_count(k) - target))
+
+
+def jaxmps_match(target: int, solver: str) -> tuple[int, int]:
+    """(m across the column, capacity) of `jaxmps.scenes.dam_break` with the
+    capacity nearest `target` (capacity grows with m; bisection)."""
+    import jaxmps
+
+    cache: dict[int, int] = {}
+
+    def capacity(m: int) -> int:
+        if m not in cache:
+            case = jaxmps.scenes.dam_break(spacing=COLUMN_WIDTH / m, solver=solver)
+            cache[m] = int(case.scene.capacity)
+        return cache[m]
+
+    lo, hi = 2, max(4, int((target / 2) ** 0.5) + 2)
+    while capacity(hi) < target:
+        lo, hi = hi, 2 * hi
+    while hi - lo > 1:
+        mid = (lo + hi) // 2
+        lo, hi = (mid, hi) if capacity(mid) < target else (lo, mid)
+    m = min((lo, hi), key=lambda k: abs(capacity(k) - target))
+    return m, capacity(m)
+
+
+# ----------------------------------------------------------------------------- jaxmps
+
+
+def best_of(call, repeats: int, max_timed_s: float):
+    """Untimed warm-up call, then the best of `repeats` timed calls [s]; only one
+    timed call when the warm-up took longer than `max_timed_s`."""
+    import jax
+
+    t0 = time.perf_counter()
+    out = jax.block_until_ready(call())
+    if time.perf_counter() - t0 > max_timed_s:
+        repeats = 1
+    times = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        out = jax.block_until_ready(call())
+        times.append(time.perf_counter() - t0)
+    return min(times), times, out
+
+
+def jaxmps_worker(
+    spacing: float, solver: str, n_steps: int, repeats: int, max_timed_s, dtype
+):
+    """One jaxmps measurement (runs in its own process; dtype set before any
+    array is made)."""
+    import jax
+
+    jax.config.update("jax_enable_x64", dtype == "float64")
+    import jax.numpy as jnp
+    from _common import loadavg
+    from step_throughput import (
+        _lower_compile,
+        _memory_analysis_mib,
+        _rss_mib,
+        observe_time,
+    )
+
+    import jaxmps
+
+    case = jaxmps.scenes.dam_break(spacing=spacing, solver=solver)
+    scene, params, state = case.scene, case.params, case.state
+    jax.block_until_ready((params, state))
+    n_fluid = int(jnp.sum(state.kind == int(jaxmps.Kind.FLUID)))
+    args = (scene, params, state, n_steps, None, observe_time)
+    kwargs = dict(throw=False)
+    compiled, t_lower, t_compile = _lower_compile(jaxmps.simulate, *args, **kwargs)
+    best, times, traj = best_of(lambda: compiled(*args, **kwargs), repeats, max_timed_s)
+    dt = float(params.dt)
+    fluid = traj.state.kind == int(jaxmps.Kind.FLUID)
+    speed = jnp.linalg.norm(traj.state.velocity, axis=1)
+    return {
+        "code": "jaxmps",
+        "solver": solver,
+        "spacing": spacing,
+        "n_across": int(round(COLUMN_WIDTH / spacing)),
+        "capacity": int(scene.capacity),
+        "n_fluid": n_fluid,
+        "n_wall": int(scene.capacity) - n_fluid,
+        "dt": dt,
+        "n_steps": n_steps,
+        "simulated_time": float(traj.state.time),
+        "dtype": str(state.position.dtype),
+        "jax_enable_x64": bool(jax.config.jax_enable_x64),
+        "trace_lower_s": t_lower,
+        "compile_s": t_compile,
+        "run_s_best": best,
+        "run_s_all": times,
+        "ms_per_step": 1e3 * best / n_steps,
+        "particle_steps_per_s": scene.capacity * n_steps / best,
+        "wall_per_simulated_s": best / (n_steps * dt),
+        "result": str(traj.result),
+        "finite": bool(traj.result == jaxmps.Result.successful),
+        "fluid_u_max": float(jnp.max(jnp.where(fluid, speed, 0.0))),
+        "peak_rss_mib": _rss_mib(),
+        "xla_memory_analysis": _memory_analysis_mib(compiled),
+        "loadavg_1min_end": loadavg(),
+    }
+
+
+# ------------------------------------------------------------------------- peer venv
+
+
+def _python_version(python: str) -> tuple[int, int, int] | None:
+    try:
+        out = subprocess.run(
+            [python, "-c", "import sys; print(*sys.version_info[:3])"],
+            capture_output=True,
+            text=True,
+            timeout=60,
+        )
+    except (OSError, subprocess.TimeoutExpired):
+        return None
+    if out.returncode != 0:
+        return None
+    try:
+        return tuple(int(x) for x in out.stdout.split()[:3])
+    except ValueError:
+        return None
+
+
+def _fits_jaxsph(version) -> bool:
+    """jax-sph 0.1.0 declares Python >= 3.9, <= 3.11.0."""
+    return version is not None and (3, 9, 0) <= version <= (3, 11, 0)
+
+
+def find_peer_python(explicit: str | None) -> tuple[str | None, list[str]]:
+    """An interpreter JAX-SPH can be installed into, and what was tried."""
+    tried = []
+    candidates = [explicit] if explicit else []
+    candidates += [shutil.which(n) for n in ("python3.10", "python3.9", "python3.11")]
+    home = Path.home() / ".pyenv" / "versions"
+    for pattern in ("3.10*", "3.9*", "3.11.0"):
+        candidates += sorted(glob.glob(str(home / pattern / "bin" / "python")))
+    for c in candidates:
+        if not c:
+            continue
+        version = _python_version(c)
+        tried.append(f"{c}: {'.'.join(map(str, version)) if version else 'no run'}")
+        if _fits_jaxsph(version):
+            return c, tried
+    return None, tried
+
+
+def _venv_has_jaxsph(python: Path) -> bool:
+    if not python.exists():
+        return False
+    check = (
+        "import importlib.metadata as m, jax_sph.solver; "
+        f"assert m.version('jax-sph') == '{JAX_SPH_VERSION}'"
+    )
+    return (
+        subprocess.run([str(python), "-c", check], capture_output=True).returncode == 0
+    )
+
+
+def ensure_peer(venv: Path, explicit_python: str | None) -> tuple[str | None, str]:
+    """Python of a venv with jax-sph installed (made if needed), and a status line."""
+    python = venv / "bin" / "python"
+    if _venv_has_jaxsph(python):
+        return str(python), f"using existing venv {venv}"
+    base, tried = find_peer_python(explicit_python)
+    if base is None:
+        return None, (
+            "no Python >= 3.9, <= 3.11.0 found for jax-sph 0.1.0 (tried: "
+            + "; ".join(tried)
+            + "); pass --peer-python"
+        )
+    print(f"creating {venv} with {base} and installing jax-sph=={JAX_SPH_VERSION}")
+    steps = [
+        [base, "-m", "venv", "--clear", str(venv)],
+        [str(python), "-m", "pip", "install", "-q", f"jax-sph=={JAX_SPH_VERSION}"],
+    ]
+    for cmd in steps:
+        proc = subprocess.run(cmd, capture_output=True, text=True)
+        if proc.returncode != 0:
+            tail = (proc.stderr or proc.stdout).strip().splitlines()[-3:]
+            return None, f"{' '.join(cmd[:4])} failed: {' | '.join(tail)}"
+    if not _venv_has_jaxsph(python):
+        return None, f"jax-sph not importable in {venv} after install"
+    return str(python), f"created venv {venv} ({base})"
+
+
+def try_pysph(venv: Path, limit_s: float) -> dict:
+    """One attempt to pip-install PySPH into its own venv within `limit_s`."""
+    t0 = time.perf_counter()
+    cmds = [
+        [sys.executable, "-m", "venv", "--clear", str(venv)],
+        [str(venv / "bin" / "python"), "-m", "pip", "install", "-q", "pysph"],
+    ]
+    for cmd in cmds:
+        left = limit_s - (time.perf_counter() - t0)
+        try:
+            proc = subprocess.run(cmd, capture_output=True, text=True, timeout=left)
+        except subprocess.TimeoutExpired:
+            return {
+                "installed": False,
+                "seconds": time.perf_counter() - t0,
+                "reason": f"`{' '.join(cmd[-3:])}` did not finish within "
+                f"{limit_s:.0f} s (PySPH is a source distribution: pip builds it "
+                "and its build dependencies - Cython, compyle, cyarray - first)",
+            }
+        if proc.returncode != 0:
+            tail = (proc.stderr or proc.stdout).strip().splitlines()[-3:]
+            return {
+                "installed": False,
+                "seconds": time.perf_counter() - t0,
+                "reason": f"`{' '.join(cmd[-3:])}` failed: {' | '.join(tail)}",
+            }
+    return {
+        "installed": True,
+        "seconds": time.perf_counter() - t0,
+        "reason": "installed; no PySPH dam break is measured by this script",
+    }
+
+
+# ----------------------------------------------------------------------------- driver
+
+
+def _run(cmd: list[str], timeout: float | None) -> dict:
+    t0 = time.perf_counter()
+    try:
+        proc = subprocess.run(
+            cmd, capture_output=True, text=True, cwd=HERE, timeout=timeout
+        )
+    except subprocess.TimeoutExpired:
+        return {"error": f"timed out after {timeout:.0f} s"}
+    wall = time.perf_counter() - t0
+    if proc.returncode != 0:
+        tail = proc.stderr.strip().splitlines()[-5:]
+        sys.stderr.write(proc.stderr[-4000:])
+        return {"error": f"exit {proc.returncode}: {' | '.join(tail)}"}
+    record = json.loads(proc.stdout.strip().splitlines()[-1])
+    record["process_wall_s"] = wall
+    return record
+
+
+def run_jaxmps(m: int, solver: str, dtype: str, args) -> dict:
+    cmd = [
+        sys.executable,
+        str(Path(__file__).resolve()),
+        "--worker-jaxmps",
+        repr(COLUMN_WIDTH / m),
+        "--solvers",
+        solver,
+        "--dtypes",
+        dtype,
+        "--steps",
+        str(args.steps),
+        "--repeats",
+        str(args.repeats),
+        "--max-timed-s",
+        str(args.max_timed_s),
+    ]
+    return _run(cmd, args.timeout)
+
+
+def run_jaxsph(python: str, n: int, dtype: str, args) -> dict:
+    cmd = [
+        python,
+        str(WORKER),
+        "--n-across",
+        str(n),
+        "--column-width",
+        repr(COLUMN_WIDTH),
+        "--steps",
+        str(args.steps),
+        "--repeats",
+        str(args.repeats),
+        "--dtype",
+        dtype,
+        "--max-timed-s",
+        str(args.max_timed_s),
+    ]
+    return _run(cmd, args.timeout)
+
+
+def _g(x, fmt=".3g"):
+    return "-" if x is None else format(x, fmt)
+
+
+def _label(r: dict) -> str:
+    return "JAX-SPH" if r["code"] == "jax-sph" else f"jaxmps {r['solver']}"
+
+
+def ratios(rows: list[dict]) -> list[dict]:
+    """jaxmps vs JAX-SPH per (size, dtype, solver), best over rounds."""
+    best: dict[tuple, dict] = {}
+    for r in rows:
+        if "error" in r:
+            continue
+        key = (r["size"], r["dtype_requested"], r.get("solver", "WCSPH"), r["code"])
+        if key not in best or r["run_s_best"] < best[key]["run_s_best"]:
+            best[key] = r
+    out = []
+    for (size, dtype, solver, code), r in best.items():
+        if code != "jaxmps":
+            continue
+        peer = best.get((size, dtype, "SPH", "jax-sph"))
+        if peer is None:
+            continue
+        out.append(
+            {
+                "size": size,
+                "dtype": dtype,
+                "solver": solver,
+                "jaxmps_particles": r["capacity"],
+                "jaxsph_particles": peer["capacity"],
+                "jaxmps_particle_steps_per_s": r["particle_steps_per_s"],
+                "jaxsph_particle_steps_per_s": peer["particle_steps_per_s"],
+                "throughput_ratio": r["particle_steps_per_s"]
+                / peer["particle_steps_per_s"],
+                "jaxmps_wall_per_simulated_s": r["wall_per_simulated_s"],
+                "jaxsph_wall_per_simulated_s": peer["wall_per_simulated_s"],
+                "simulated_time_speed_ratio": peer["wall_per_simulated_s"]
+                / r["wall_per_simulated_s"],
+                "dt_ratio": r["dt"] / peer["dt"],
+            }
+        )
+    return out
+
+
+def markdown(info: dict, rows, ratio_rows, peer: dict, pysph, args) -> str:
+    tag = f"CPU ({info['cpu_usable']} cores)" if info["backend"] == "cpu" else "GPU"
+    pv = next((r["versions"] for r in rows if r.get("code") == "jax-sph"), None)
+    lines = [
+        f"# Side by side: jaxmps vs JAX-SPH, 2-D dam break, {tag}",
+        "",
+        f"- machine: {info['platform']}, {info['cpu_model']}, "
+        f"{info['cpu_usable']} usable / {info['cpu_count']} CPUs",
+        f"- jaxmps: jax {info['jax']} (jaxlib {info['jaxlib']}), equinox "
+        f"{info['equinox']}, jaxmps {info['jaxmps']}, python {info['python']}; git "
+        f"{info['git_commit']}"
+        + (" (uncommitted changes)" if info["git_dirty_tracked"] else ""),
+        "- JAX-SPH: "
+        + (
+            f"jax-sph {pv['jax_sph']}, jax {pv['jax']} (jaxlib {pv['jaxlib']}), "
+            f"python {pv['python']}"
+            if pv
+            else "not run"
+        )
+        + f" ({peer['status']})",
+        f"- 1-min load average: {_g(info.get('loadavg_1min_start'), '.2f')} at "
+        f"start, {_g(info.get('loadavg_1min_end'), '.2f')} at end (> core count "
+        "means other processes competed for the CPU)",
+        f"- {args.steps} steps; run = best of {args.repeats} calls after one untimed "
+        f"warm-up call (one call where the warm-up took > {args.max_timed_s:g} s; "
+        "`run_s_all` in the JSON); compile (trace+lower / XLA) measured "
+        "separately; every row is a fresh subprocess, jaxmps and JAX-SPH "
+        "alternating; peak RSS is that subprocess's (Python, jax and the "
+        "compiler included).",
+        "",
+        "| size | code | dtype | particles (fluid) | spacing [mm] | dt [µs] "
+        "| compile [s] | run [s] | ms/step | particle-steps/s | wall / sim. s [s] "
+        "| peak RSS [MiB] | ok |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    for r in rows:
+        if "error" in r:
+            lines.append(
+                f"| {r['size']} | {r['code']} | {r['dtype_requested']} "
+                f"| {r['error']} |" + " |" * 9
+            )
+            continue
+        spacing = r.get("spacing", r.get("dx"))
+        lines.append(
+            f"| {r['size']} | {_label(r)} | {r['dtype']} "
+            f"| {r['capacity']} ({r['n_fluid']}) | {1e3 * spacing:.3f} "
+            f"| {1e6 * r['dt']:.1f} "
+            f"| {r['trace_lower_s'] + r['compile_s']:.1f} "
+            f"({r['trace_lower_s']:.1f} / {r['compile_s']:.1f}) "
+            f"| {r['run_s_best']:.2f} | {r['ms_per_step']:.1f} "
+            f"| {r['particle_steps_per_s']:.3g} | {r['wall_per_simulated_s']:.0f} "
+            f"| {r['peak_rss_mib']:.0f} | {'yes' if r['finite'] else 'NO'} |"
+        )
+    if ratio_rows:
+        lines += [
+            "",
+            "## Ratios (jaxmps / JAX-SPH; > 1 means jaxmps is faster)",
+            "",
+            "| size | dtype | jaxmps solver | particles jaxmps / JAX-SPH "
+            "| particle-steps/s jaxmps / JAX-SPH | **throughput ratio** "
+            "| dt ratio | wall per sim. s JAX-SPH / jaxmps |",
+            "|---|---|---|---|---|---|---|---|",
+        ]
+        for q in ratio_rows:
+            lines.append(
+                f"| {q['size']} | {q['dtype']} | {q['solver']} "
+                f"| {q['jaxmps_particles']} / {q['jaxsph_particles']} "
+                f"| {q['jaxmps_particle_steps_per_s']:.3g} / "
+                f"{q['jaxsph_particle_steps_per_s']:.3g} "
+                f"| **{q['throughput_ratio']:.2f}** | {q['dt_ratio']:.2f} "
+                f"| {q['simulated_time_speed_ratio']:.2f} |"
+            )
+    lines += [
+        "",
+        "Throughput ratio = particle-steps/s of jaxmps / of JAX-SPH (cost per "
+        "particle and step). The last column compares the wall time per simulated "
+        "second, which also contains the two codes' different time steps (dt ratio "
+        "= jaxmps dt / JAX-SPH dt) and the small difference in particle count.",
+        "",
+        "JAX-SPH case: WCSPH (`solver.name = SPH`), density evolution, artificial "
+        "viscosity alpha = 0.1, generalized wall BC, quintic spline kernel (h = dx, "
+        "cut-off 3 dx), 3 wall layers round a closed 0.584 x 0.438 m tank, rho = "
+        "1000, eta = 1e-3 Pa s, g = 9.81, c = 10 sqrt(2 g H) = 23.9 m/s, dt = 0.25 dx "
+        "/ (c + u_ref); neighbour list `jaxmd_vmap` (rebuilt every step, inside the "
+        "scan). jaxmps: `scenes.dam_break` defaults (open tank, walls + dummies).",
+    ]
+    if pysph is not None:
+        lines += [
+            "",
+            f"PySPH: {'installed' if pysph['installed'] else 'not installed'} "
+            f"({pysph['seconds']:.0f} s): {pysph['reason']}",
+        ]
+    return "\n".join(lines) + "\n"
+
+
+def main(argv=None):
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument(
+        "--sizes",
+        nargs="+",
+        default=["7k", "25k"],
+        help="target particle counts, e.g. 7k 25k 90k (default 7k 25k)",
+    )
+    p.add_argument("--steps", type=int, default=200, help="steps per run")
+    p.add_argument("--repeats", type=int, default=3, help="timed calls (best taken)")
+    p.add_argument(
+        "--max-timed-s",
+        type=float,
+        default=20.0,
+        help="time only one call when the warm-up call took longer than this [s]",
+    )
+    p.add_argument(
+        "--dtypes",
+        nargs="+",
+        default=["float64", "float32"],
+        choices=["float64", "float32"],
+    )
+    p.add_argument(
+        "--solvers",
+        nargs="+",
+        default=["explicit"],
+        choices=["explicit", "semi_implicit"],
+        help="jaxmps solver(s) (default explicit, the weakly compressible one)",
+    )
+    p.add_argument(
+        "--rounds",
+        type=int,
+        default=1,
+        help="alternating rounds per size and dtype (the best round is compared)",
+    )
+    p.add_argument("--peer-python", help="interpreter for the JAX-SPH venv")
+    p.add_argument(
+        "--peer-venv",
+        type=Path,
+        default=HERE / ".venv-jaxsph",
+        help="JAX-SPH venv (created if missing; default benchmarks/.venv-jaxsph)",
+    )
+    p.add_argument("--no-peer", action="store_true", help="measure jaxmps only")
+    p.add_argument(
+        "--try-pysph",
+        action="store_true",
+        help="also try once to pip-install PySPH (own venv, --pysph-limit s)",
+    )
+    p.add_argument("--pysph-limit", type=float, default=120.0)
+    p.add_argument(
+        "--timeout", type=float, default=None, help="limit per subprocess [s]"
+    )
+    p.add_argument("--out", type=Path, default=None, help="path without extension")
+    p.add_argument("--worker-jaxmps", type=float, help=argparse.SUPPRESS)
+    args = p.parse_args(argv)
+
+    if args.worker_jaxmps is not None:
+        rec = jaxmps_worker(
+            args.worker_jaxmps,
+            args.solvers[0],
+            args.steps,
+            args.repeats,
+            args.max_timed_s,
+            args.dtypes[0],
+        )
+        print(json.dumps(rec))
+        return
+
+    from _common import loadavg, machine_info
+
+    info = machine_info()
+    targets = [(s, parse_size(s)) for s in args.sizes]
+
+    if args.no_peer:
+        peer_python, status = None, "skipped (--no-peer)"
+    else:
+        peer_python, status = ensure_peer(args.peer_venv, args.peer_python)
+    peer = {"python": peer_python, "status": status}
+    print(f"JAX-SPH: {status}", flush=True)
+    pysph = None
+    if args.try_pysph:
+        pysph = try_pysph(HERE / ".venv-pysph", args.pysph_limit)
+        print(f"PySPH: {pysph['reason']}", flush=True)
+
+    backend = "gpu" if info["backend"] == "gpu" else "cpu"
+    out = args.out or HERE / "results" / f"side_by_side_{backend}"
+    out.parent.mkdir(parents=True, exist_ok=True)
+    rows: list[dict] = []
+
+    def save():
+        info["loadavg_1min_end"] = loadavg()
+        ratio_rows = ratios(rows)
+        payload = {
+            "benchmark": "side_by_side",
+            "scene": "dam_break (2-D), 0.146 x 0.292 m column, 0.584 m tank",
+            "settings": {
+                "sizes": args.sizes,
+                "steps": args.steps,
+                "repeats": args.repeats,
+                "max_timed_s": args.max_timed_s,
+                "dtypes": args.dtypes,
+                "solvers": args.solvers,
+                "rounds": args.rounds,
+            },
+            "machine": info,
+            "peer": peer,
+            "pysph": pysph,
+            "runs": rows,
+            "ratios": ratio_rows,
+        }
+        Path(f"{out}.json").write_text(json.dumps(payload, indent=2) + "\n")
+        md = markdown(info, rows, ratio_rows, peer, pysph, args)
+        Path(f"{out}.md").write_text(md)
+        return md
+
+    for size, target in targets:
+        n = jaxsph_n_across(target)
+        matches = {s: jaxmps_match(jaxsph_count(n), s) for s in args.solvers}
+        print(
+            f"size {size}: JAX-SPH n={n} ({jaxsph_count(n)} particles); jaxmps "
+            + ", ".join(f"{s} m={m} ({c})" for s, (m, c) in matches.items()),
+            flush=True,
+        )
+        for dtype in args.dtypes:
+            for rnd in range(args.rounds):
+                jobs = [("jaxmps", s) for s in args.solvers]
+                if peer_python:
+                    jobs.append(("jax-sph", "SPH"))
+                for code, solver in jobs:
+                    t0 = time.perf_counter()
+                    if code == "jaxmps":
+                        r = run_jaxmps(matches[solver][0], solver, dtype, args)
+                    else:
+                        r = run_jaxsph(peer_python, n, dtype, args)
+                    r.update(code=code, size=size, dtype_requested=dtype, round=rnd)
+                    r.setdefault("solver", solver)
+                    rows.append(r)
+                    if "error" in r:
+                        msg = r["error"]
+                    else:
+                        msg = (
+                            f"n={r['capacity']} compile="
+                            f"{r['trace_lower_s'] + r['compile_s']:.1f}s run="
+                            f"{r['run_s_best']:.2f}s "
+                            f"{r['particle_steps_per_s']:.3g} particle-steps/s "
+                            f"rss={r['peak_rss_mib']:.0f}MiB"
+                        )
+                    print(
+                        f"  {size} {dtype} {code} {solver}: {msg} "
+                        f"[{time.perf_counter() - t0:.0f}s]",
+                        flush=True,
+                    )
+                    save()
+
+    md = save()
+    print()
+    print(md)
+    print(f"wrote {out}.json and {out}.md")
+
+
+if __name__ == "__main__":
+    main()
