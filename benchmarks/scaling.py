@@ -1,0 +1,140 @@
+"""Step time vs particle count (2-D dam break), per solver, with its log-log slope.
+
+Per size (`jaxmps.scenes.dam_break` at the spacing giving about that many particles,
+walls and dummies included; the column is first advanced 20 steps so that it moves):
+ms per step of a compiled `--steps`-step rollout (best of 2 after a warm-up call,
+compile timed apart), particle-steps/s, CG iterations per step (semi-implicit), and
+the share of one neighbour build in the step (a build jitted alone, times the two
+builds a step makes, over the step time). The slope is the least-squares fit of
+log(ms/step) on log(particles) over all sizes.
+
+    python benchmarks/scaling.py                       # float32, 1k-100k, ~10 min
+    python benchmarks/scaling.py --sizes 1000 10000 --steps 10 --x64
+
+Writes results/scaling_<cpu|gpu>.{json,md}.
+"""
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+
+import equinox as eqx
+import jax
+import numpy as np
+
+HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE))
+
+
+class _Time(eqx.Module):
+    def __call__(self, scene, state):
+        return state.time
+
+
+def _best(fn, *args, repeats=2):
+    jax.block_until_ready(fn(*args))
+    times = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        jax.block_until_ready(fn(*args))
+        times.append(time.perf_counter() - t0)
+    return min(times)
+
+
+def measure(solver: str, target: int, steps: int) -> dict:
+    import jaxmps
+
+    spacing = 2.808e-3 * (6986 / target) ** 0.5
+    case = jaxmps.scenes.dam_break(spacing=spacing, solver=solver)
+    scene, params = case.scene, case.params
+    state = jaxmps.simulate(scene, params, case.state, 20, 20, throw=False).state
+    args = (scene, params, state, steps, steps, _Time())
+    t0 = time.perf_counter()
+    compiled = jaxmps.simulate.lower(*args, throw=False).compile()
+    compile_s = time.perf_counter() - t0
+    run = _best(lambda: compiled(*args, throw=False))
+    _, info = eqx.filter_jit(jaxmps.step)(scene, params, state)
+
+    def build(x):
+        nb = jaxmps.neighbours.build(
+            scene.grid, x, state.active, scene.max_neighbours, scene.r_e
+        )
+        return nb.index
+
+    build_s = _best(jax.jit(build), state.position, repeats=5)
+    ms = 1e3 * run / steps
+    row = {
+        "solver": solver,
+        "spacing": spacing,
+        "particles": int(scene.capacity),
+        "steps": steps,
+        "compile_s": compile_s,
+        "ms_per_step": ms,
+        "particle_steps_per_s": scene.capacity * steps / run,
+        "cg_iterations": int(info.pressure_iterations),
+        "build_ms": 1e3 * build_s,
+        "build_share": 2e3 * build_s / ms,
+    }
+    print(
+        f"{solver:14s} n={row['particles']:7d} {ms:9.2f} ms/step "
+        f"{row['particle_steps_per_s']:.3g} p-steps/s CG {row['cg_iterations']:4d} "
+        f"builds {100 * row['build_share']:.0f} % compile {compile_s:.1f} s",
+        flush=True,
+    )
+    return row
+
+
+def main(argv=None):
+    p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    p.add_argument(
+        "--sizes", type=int, nargs="+", default=[1000, 3000, 10000, 30000, 100000]
+    )
+    p.add_argument("--solvers", nargs="+", default=["explicit", "semi_implicit"])
+    p.add_argument("--steps", type=int, default=20)
+    p.add_argument("--x64", action="store_true")
+    p.add_argument("--out", type=Path, default=None)
+    args = p.parse_args(argv)
+    jax.config.update("jax_enable_x64", args.x64)
+    from _common import loadavg, machine_info
+
+    info = machine_info()
+    rows = [measure(s, n, args.steps) for s in args.solvers for n in args.sizes]
+    slopes = {}
+    for s in args.solvers:
+        sel = [r for r in rows if r["solver"] == s]
+        x = np.log([r["particles"] for r in sel])
+        y = np.log([r["ms_per_step"] for r in sel])
+        slopes[s] = float(np.polyfit(x, y, 1)[0]) if len(sel) > 1 else None
+    info["loadavg_1min_end"] = loadavg()
+    data = {"machine": info, "rows": rows, "slopes": slopes}
+    out = args.out or HERE / "results" / f"scaling_{jax.default_backend()}"
+    out.with_suffix(".json").write_text(json.dumps(data, indent=1))
+    lines = [
+        "# Step time vs particle count: 2-D dam break",
+        "",
+        f"- {info['platform']}, {info['cpu_model']}, {info['cpu_usable']} cores; "
+        f"jax {info['jax']}; {info['dtype']}; git {info['git_commit']}",
+        f"- 1-min load average {info['loadavg_1min_start']} at start, "
+        f"{info['loadavg_1min_end']} at end",
+        f"- {args.steps} steps after 20; best of 2 after a warm-up call",
+        "",
+        "| solver | particles | ms/step | particle-steps/s | CG it. | "
+        "build share | compile [s] |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for r in rows:
+        lines.append(
+            f"| {r['solver']} | {r['particles']} | {r['ms_per_step']:.2f} | "
+            f"{r['particle_steps_per_s']:.3g} | {r['cg_iterations']} | "
+            f"{100 * r['build_share']:.0f} % | {r['compile_s']:.1f} |"
+        )
+    lines += ["", "log-log slope of ms/step on particles: "]
+    lines[-1] += ", ".join(f"{s} {v:.2f}" for s, v in slopes.items() if v is not None)
+    out.with_suffix(".md").write_text("\n".join(lines) + "\n")
+    print("\n".join(lines))
+
+
+if __name__ == "__main__":
+    main()
