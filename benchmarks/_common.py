@@ -70,3 +70,11 @@ def machine_info() -> dict:
         "date": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
         "loadavg_1min_start": loadavg(),
     }
+
+
+def result_name(result) -> str:
+    """Name of a `jaxmps.Result` value ("successful", "nonfinite_state", ...)."""
+    for name in jaxmps.Result._name_to_item:
+        if bool(result == getattr(jaxmps.Result, name)):
+            return name
+    return str(result)

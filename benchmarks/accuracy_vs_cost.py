@@ -54,7 +54,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 from _common import loadavg as _loadavg
-from _common import machine_info
+from _common import machine_info, result_name
 
 import jaxmps
 
@@ -185,18 +185,6 @@ def _timed_rollout(scene, params, state, n_steps, save_every, observe, args):
     return traj, timing
 
 
-def _result_name(result) -> str:
-    """Name of a `jaxmps.Result` value ("successful", "nonfinite_state", ...)."""
-    names = list(getattr(jaxmps.Result, "_name_to_item", {})) or ["successful"]
-    for name in names:
-        try:
-            if bool(result == getattr(jaxmps.Result, name)):
-                return name
-        except Exception:  # noqa: BLE001
-            continue
-    return str(result)
-
-
 def _dam_break_errors(saved, a):
     t = np.asarray(saved["time"]) * math.sqrt(2 * G / a)
     z = np.asarray(saved["front"]) / a
@@ -259,7 +247,7 @@ def run_case(case_name: str, solver: str, spacing: float, args) -> dict:
     record["wall_per_sim_s"] = run / simulated
     record["ms_per_step"] = 1e3 * run / n_steps
     record["particle_steps_per_s"] = scene.capacity * n_steps / run
-    record["result"] = _result_name(traj.result)
+    record["result"] = result_name(traj.result)
     record["successful"] = bool(traj.result == jaxmps.Result.successful)
     saved = {k: np.asarray(v) for k, v in traj.saved.items()}
 

@@ -44,7 +44,6 @@ METHODS = {
     "high_accuracy": dict(solver="semi_implicit", scheme="high_accuracy"),
     "explicit": dict(solver="explicit"),
 }
-RHO, G = 1000.0, 9.81
 
 
 class Observe(eqx.Module):
@@ -73,12 +72,8 @@ def run(method: str, steps: int, every: int) -> dict:
     case = jaxmps.scenes.hydrostatic(
         spacing=0.02, width=0.2, depth=0.2, **METHODS[method]
     )
-    l0, depth = case.scene.spacing, float(case.config["depth"])
-    probe = next(p for p in case.probes if p.name == "pressure_bottom")
-    pos = np.asarray(case.state.position)
-    fluid = np.asarray(case.state.kind) == int(jaxmps.Kind.FLUID)
-    near = fluid & (((pos - np.asarray(probe.point)) ** 2).sum(-1) < probe.radius**2)
-    reference = RHO * G * (depth - 0.5 * l0 - pos[near, 1].mean())
+    l0 = case.scene.spacing
+    reference = jaxmps.scenes.hydrostatic_pressure(case)
     args = (case.scene, case.params, case.state, steps, every, Observe(case.probes))
     t0 = time.perf_counter()
     compiled = jaxmps.simulate.lower(*args, throw=False).compile()

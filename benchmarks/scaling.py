@@ -17,7 +17,6 @@ Writes results/scaling_<cpu|gpu>.{json,md}.
 import argparse
 import json
 import sys
-import time
 from pathlib import Path
 
 import equinox as eqx
@@ -28,33 +27,19 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 
 
-class _Time(eqx.Module):
-    def __call__(self, scene, state):
-        return state.time
-
-
-def _best(fn, *args, repeats=2):
-    jax.block_until_ready(fn(*args))
-    times = []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        jax.block_until_ready(fn(*args))
-        times.append(time.perf_counter() - t0)
-    return min(times)
-
-
 def measure(solver: str, target: int, steps: int) -> dict:
+    from step_throughput import _best_of, _lower_compile, observe_time
+
     import jaxmps
 
     spacing = 2.808e-3 * (6986 / target) ** 0.5
     case = jaxmps.scenes.dam_break(spacing=spacing, solver=solver)
     scene, params = case.scene, case.params
     state = jaxmps.simulate(scene, params, case.state, 20, 20, throw=False).state
-    args = (scene, params, state, steps, steps, _Time())
-    t0 = time.perf_counter()
-    compiled = jaxmps.simulate.lower(*args, throw=False).compile()
-    compile_s = time.perf_counter() - t0
-    run = _best(lambda: compiled(*args, throw=False))
+    args = (scene, params, state, steps, steps, observe_time)
+    compiled, lower_s, xla_s = _lower_compile(jaxmps.simulate, *args, throw=False)
+    compile_s = lower_s + xla_s
+    run, _, _ = _best_of(lambda: compiled(*args, throw=False), 2)
     _, info = eqx.filter_jit(jaxmps.step)(scene, params, state)
 
     def build(x):
@@ -63,7 +48,8 @@ def measure(solver: str, target: int, steps: int) -> dict:
         )
         return nb.index
 
-    build_s = _best(jax.jit(build), state.position, repeats=5)
+    jitted = jax.jit(build)
+    build_s, _, _ = _best_of(lambda: jitted(state.position), 5)
     ms = 1e3 * run / steps
     row = {
         "solver": solver,

@@ -106,23 +106,6 @@ def jaxmps_match(target: int, solver: str) -> tuple[int, int]:
 # ----------------------------------------------------------------------------- jaxmps
 
 
-def best_of(call, repeats: int, max_timed_s: float):
-    """Untimed warm-up call, then the best of `repeats` timed calls [s]; only one
-    timed call when the warm-up took longer than `max_timed_s`."""
-    import jax
-
-    t0 = time.perf_counter()
-    out = jax.block_until_ready(call())
-    if time.perf_counter() - t0 > max_timed_s:
-        repeats = 1
-    times = []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        out = jax.block_until_ready(call())
-        times.append(time.perf_counter() - t0)
-    return min(times), times, out
-
-
 def jaxmps_worker(
     spacing: float, solver: str, n_steps: int, repeats: int, max_timed_s, dtype
 ):
@@ -134,6 +117,7 @@ def jaxmps_worker(
     import jax.numpy as jnp
     from _common import loadavg
     from step_throughput import (
+        _best_of,
         _lower_compile,
         _memory_analysis_mib,
         _rss_mib,
@@ -149,7 +133,9 @@ def jaxmps_worker(
     args = (scene, params, state, n_steps, None, observe_time)
     kwargs = dict(throw=False)
     compiled, t_lower, t_compile = _lower_compile(jaxmps.simulate, *args, **kwargs)
-    best, times, traj = best_of(lambda: compiled(*args, **kwargs), repeats, max_timed_s)
+    best, times, traj = _best_of(
+        lambda: compiled(*args, **kwargs), repeats, max_timed_s
+    )
     dt = float(params.dt)
     fluid = traj.state.kind == int(jaxmps.Kind.FLUID)
     speed = jnp.linalg.norm(traj.state.velocity, axis=1)

@@ -69,7 +69,7 @@ DENSITY_RATIOS = (0.1, 0.25, 0.5, 0.75, 0.9, 2.0, 10.0)
 BOUND = {"hydrostatic": 0.05, "standing_wave": 0.05, "floating_box": 1.0}
 T_HYDRO, T_WAVE, T_BOX = 1.0, 1.6, 1.2
 WAVE = dict(tank_length=0.4, depth=0.2, tank_height=0.3, amplitude=0.02)
-RHO, G = 1000.0, 9.81
+G = 9.81
 
 
 # --------------------------------------------------------------------- one process
@@ -142,25 +142,12 @@ def _rollout(case, t_end: float, max_steps: int, saves: int, extra_observe=None)
     return traj, timing
 
 
-def _result_name(result) -> str:
-    import jaxmps
-
-    for name in jaxmps.Result._name_to_item:
-        if bool(result == getattr(jaxmps.Result, name)):
-            return name
-    return str(result)
-
-
 def _hydrostatic_error(case, saved, l0: float) -> dict:
     t = saved["time"]
     late = t >= 0.5 * t[-1] - 1e-12
-    bottom = next(p for p in case.probes if p.name == "pressure_bottom")
-    pos = np.asarray(case.state.position, float)
-    fluid = np.asarray(case.state.active) & (np.asarray(case.state.kind) == 0)
-    d2 = ((pos - np.asarray(bottom.point)[None, :]) ** 2).sum(-1)
-    y0 = float(pos[fluid & (d2 < bottom.radius**2), -1].mean())
-    depth = float(case.config["depth"])
-    reference = RHO * G * (depth - 0.5 * l0 - y0)
+    import jaxmps
+
+    reference = jaxmps.scenes.hydrostatic_pressure(case)
     p = saved["pressure_bottom"][late]
     level = saved["water_level"]
     return {
@@ -199,6 +186,7 @@ def _box_error(case, saved, ratio: float) -> dict:
 
 def run_one(method: str, axis: str, value: float, max_steps: int) -> list[dict]:
     import jax.numpy as jnp
+    from _common import result_name
 
     rows = []
     cases = []
@@ -251,7 +239,7 @@ def run_one(method: str, axis: str, value: float, max_steps: int) -> list[dict]:
             rows.append(row)
             continue
         saved = {k: np.asarray(v, float) for k, v in traj.saved.items()}
-        row["result"] = _result_name(traj.result)
+        row["result"] = result_name(traj.result)
         row["t_reached"] = float(traj.state.time)
         row["t_end"] = t_end
         row["complete"] = row["t_reached"] >= 0.98 * t_end

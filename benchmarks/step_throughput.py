@@ -108,9 +108,15 @@ def _lower_compile(fn, *args, **kwargs):
     return compiled, t1 - t0, t2 - t1
 
 
-def _best_of(call, repeats: int) -> tuple[float, list[float], object]:
-    """Untimed warm-up call, then the best of `repeats` timed calls [s]."""
+def _best_of(
+    call, repeats: int, max_timed_s: float = float("inf")
+) -> tuple[float, list[float], object]:
+    """Untimed warm-up call, then the best of `repeats` timed calls [s]; only one
+    timed call when the warm-up took longer than `max_timed_s`."""
+    t0 = time.perf_counter()
     out = jax.block_until_ready(call())
+    if time.perf_counter() - t0 > max_timed_s:
+        repeats = 1
     times = []
     for _ in range(repeats):
         t0 = time.perf_counter()

@@ -11,8 +11,6 @@ import jaxmps
 from jaxmps import io
 from jaxmps.cli import main
 
-RHO, G = 1000.0, 9.81
-
 
 def _tank(**overrides):
     return jaxmps.scenes.hydrostatic(spacing=0.02, width=0.2, depth=0.2, **overrides)
@@ -33,12 +31,7 @@ def _bottom_pressure_error(case, t_end=0.5):
         throw=False,
     )
     saved = {k: np.asarray(v) for k, v in out.saved.items()}
-    probe = next(p for p in case.probes if p.name == "pressure_bottom")
-    pos = np.asarray(case.state.position)
-    fluid = np.asarray(case.state.kind) == int(jaxmps.Kind.FLUID)
-    near = fluid & (((pos - np.asarray(probe.point)) ** 2).sum(-1) < probe.radius**2)
-    l0, depth = case.scene.spacing, case.config["depth"]
-    reference = RHO * G * (depth - 0.5 * l0 - pos[near, 1].mean())
+    reference = jaxmps.scenes.hydrostatic_pressure(case)
     late = saved["time"] >= 0.5 * t_end
     return out.result, np.mean(saved["pressure_bottom"][late]) / reference - 1
 

@@ -16,6 +16,7 @@ from ._flume import DEFAULTS as _FLUME
 from ._flume import flume as flume
 from ._hydrostatic import DEFAULTS as _HYDROSTATIC
 from ._hydrostatic import hydrostatic as hydrostatic
+from ._hydrostatic import hydrostatic_pressure as hydrostatic_pressure
 from ._probes import AbstractProbe as AbstractProbe
 from ._probes import BodyValue as BodyValue
 from ._probes import FluidPressureNear as FluidPressureNear

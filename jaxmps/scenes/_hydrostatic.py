@@ -47,3 +47,25 @@ def hydrostatic(**overrides) -> Case:
         t_end=float(c["t_end"]),
         config=config,
     )
+
+
+def hydrostatic_pressure(case: Case, probe: str = "pressure_bottom") -> float:
+    """The analytic value of a `FluidPressureNear` probe of a `hydrostatic` case [Pa]:
+    rho |g| (H - l0/2 - y), with y the mean initial height of the probe's particles
+    and H - l0/2 the surface particles' centres, where the scheme imposes P = 0."""
+    import numpy as np
+
+    from .._types import Kind
+
+    near = next(p for p in case.probes if p.name == probe)
+    if not isinstance(near, FluidPressureNear):
+        raise ValueError(f"Probe {probe!r} is not a FluidPressureNear probe.")
+    position = np.asarray(case.state.position, dtype=float)
+    fluid = np.asarray(case.state.active) & (
+        np.asarray(case.state.kind) == int(Kind.FLUID)
+    )
+    d2 = ((position - np.asarray(near.point)[None, :]) ** 2).sum(axis=-1)
+    height = position[fluid & (d2 < near.radius**2), -1].mean()
+    rho = float(case.params.density)
+    g = float(np.linalg.norm(np.asarray(case.params.gravity)))
+    return rho * g * (case.config["depth"] - 0.5 * case.scene.spacing - height)
