@@ -2,6 +2,7 @@
 
 import math
 
+import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 
@@ -10,7 +11,7 @@ from ._result import Result
 from ._scene import Scene
 from ._state import State
 from .fluid import AbstractSolver, SemiImplicit
-from .neighbours import Grid
+from .neighbours import Grid, candidate_counts
 from .operators import (
     AbstractGradient,
     AbstractLaplacian,
@@ -35,9 +36,10 @@ def make_scene(
     gradient: AbstractGradient = CorrectedGradient(minimum_shift=True),
     solver: AbstractSolver = SemiImplicit(),
     neighbour_margin: float = 2.0,
-    cell_margin: float = 1.5,
+    candidate_margin: float = 1.5,
     max_neighbours: int | None = None,
-    cell_capacity: int | None = None,
+    candidate_capacity: int | None = None,
+    reach: int = 2,
     courant_limit: float = 0.5,
     viscous_limit: float = 1.0,
 ) -> Scene:
@@ -53,8 +55,12 @@ def make_scene(
         weight, laplacian, gradient, solver: the discretisation; see
             `jaxmps.schemes` for the named presets (`standard`, `high_accuracy`).
         neighbour_margin: `max_neighbours` = ceil(margin x lattice neighbour count).
-        cell_margin: `cell_capacity` = ceil(margin x the fullest cell initially).
-        max_neighbours, cell_capacity: explicit values override the margins.
+        candidate_margin: `candidate_capacity` = ceil(margin x the most particles
+            in the stencil cells of one particle, initially).
+        max_neighbours, candidate_capacity: explicit values override the margins.
+        reach: the neighbour grid's cells have edge r_e / reach and the stencil
+            reaches `reach` cells each way (2, the default, tests about 3x the
+            neighbour count as candidates in 2-D; 1 about 4x).
         courant_limit, viscous_limit: stability limits checked every step (see
             `Scene`); `viscous_limit=math.inf` switches the viscous check off.
 
@@ -87,21 +93,24 @@ def make_scene(
 
     n0, lam = reference_constants(weight, dim, r_e)
     radius = r_e * spacing
-    shape = tuple(int(s) for s in np.maximum(np.ceil((upper - lower) / radius), 1))
-    if cell_capacity is None:
-        coords = np.clip(np.floor((position - lower) / radius).astype(int), 0, None)
-        _, counts = np.unique(coords, axis=0, return_counts=True)
-        fullest = int(counts.max()) if m else 1
-        cell_capacity = max(2, math.ceil(cell_margin * fullest))
+    if int(reach) != reach or reach < 1:
+        raise ValueError(f"reach must be a positive integer, got {reach!r}.")
+    cell_size = radius / reach
+    shape = np.maximum(np.ceil((upper - lower) / cell_size), 1)
+    grid = Grid(
+        origin=tuple(float(v) for v in lower),
+        cell_size=cell_size,
+        shape=tuple(int(s) for s in shape),
+        candidate_capacity=1,
+        reach=int(reach),
+    )
+    if candidate_capacity is None:
+        most = int(candidate_counts(grid, position).max()) if m else 1
+        candidate_capacity = max(2, math.ceil(candidate_margin * most))
+    grid = eqx.tree_at(lambda g: g.candidate_capacity, grid, int(candidate_capacity))
     if max_neighbours is None:
         lattice_count = len(lattice_offsets(dim, r_e))
         max_neighbours = math.ceil(neighbour_margin * lattice_count)
-    grid = Grid(
-        origin=tuple(float(v) for v in lower),
-        cell_size=radius,
-        shape=shape,
-        cell_capacity=int(cell_capacity),
-    )
     return Scene(
         dim=dim,
         capacity=capacity,

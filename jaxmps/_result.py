@@ -17,9 +17,9 @@ class Result(eqx.Enumeration):
         "(scene override `max_neighbours=...`, or `make_scene(neighbour_margin=...)`)."
     )
     cell_overflow = (
-        "A neighbour-search cell held more particles than `Scene.grid.cell_capacity`. "
-        "Raise it (scene override `cell_capacity=...`, or "
-        "`make_scene(cell_margin=...)`)."
+        "The neighbour-search cells around a particle held more particles than "
+        "`Scene.grid.candidate_capacity`. Raise it (scene override "
+        "`candidate_capacity=...`, or `make_scene(candidate_margin=...)`)."
     )
     pressure_not_converged = (
         "The pressure Poisson solve did not reach its tolerance within "

@@ -76,7 +76,7 @@ class Scene(eqx.Module):
             raise ValueError(f"Scene.dim must be 2 or 3, got {self.dim}.")
         if len(self.grid.shape) != self.dim:
             raise ValueError("Scene.grid must have one axis per dimension.")
-        if self.grid.cell_size < self.r_e:
-            raise ValueError("Scene.grid.cell_size must be at least r_e.")
+        if self.grid.radius < self.r_e:
+            raise ValueError("Scene.grid.cell_size x Scene.grid.reach must be >= r_e.")
         if self.max_neighbours < 1 or self.capacity < 1:
             raise ValueError("Scene.max_neighbours and Scene.capacity must be >= 1.")

@@ -144,7 +144,7 @@ def test_restart_continuity(tmp_path, case):
 def test_run_failure_writes_and_raises(tmp_path):
     # A far too large time step: the Courant check fails within a few steps.
     case = jaxmps.scenes.hydrostatic(spacing=0.02, dt=0.2)
-    failure = r"failed between t=0 s and t=.*(cell_capacity|Courant)"
+    failure = r"failed between t=0 s and t=.*(candidate_capacity|Courant)"
     with pytest.raises(RuntimeError, match=failure):
         jaxmps.run(
             case,

@@ -4,17 +4,22 @@ import numpy as np
 import pytest
 from helpers import brute_force_neighbours, listed
 
-from jaxmps.neighbours import Grid, build
+from jaxmps.neighbours import Grid, build, candidate_counts
 
 
+@pytest.mark.parametrize("reach", [1, 2])
 @pytest.mark.parametrize("dim", [2, 3])
-def test_matches_brute_force_random_order_with_inactive(rng, dim):
+def test_matches_brute_force_random_order_with_inactive(rng, dim, reach):
     n = 400 if dim == 2 else 600
     x = rng.uniform(0.0, 1.0, (n, dim))
     active = rng.uniform(size=n) > 0.2
     radius = 0.15 if dim == 2 else 0.25
     grid = Grid(
-        origin=(0.0,) * dim, cell_size=radius, shape=(7,) * dim, cell_capacity=60
+        origin=(0.0,) * dim,
+        cell_size=radius / reach,
+        shape=(7 * reach,) * dim,
+        candidate_capacity=200 if dim == 2 else 450,
+        reach=reach,
     )
     nbrs = jax.jit(build, static_argnums=(0, 3, 4))(
         grid, jnp.asarray(x), jnp.asarray(active), 120, radius
@@ -28,10 +33,11 @@ def test_matches_brute_force_random_order_with_inactive(rng, dim):
 def test_permutation_invariance(rng):
     x = rng.uniform(0.0, 1.0, (300, 2))
     active = np.ones(300, bool)
-    grid = Grid(origin=(0.0, 0.0), cell_size=0.1, shape=(10, 10), cell_capacity=30)
+    grid = Grid(origin=(0.0, 0.0), cell_size=0.1, shape=(10, 10), candidate_capacity=80)
     perm = rng.permutation(300)
     a = build(grid, jnp.asarray(x), jnp.asarray(active), 40, 0.1)
     b = build(grid, jnp.asarray(x[perm]), jnp.asarray(active), 40, 0.1)
+    assert not bool(a.cell_overflow) and not bool(a.neighbour_overflow)
     inv = np.argsort(perm)
     la = listed(a.index, 300)
     lb = listed(b.index, 300)[inv][:, inv]
@@ -46,7 +52,10 @@ def test_deliberate_overflows():
 
     def grid(capacity):
         return Grid(
-            origin=(0.0, 0.0), cell_size=0.1, shape=(10, 10), cell_capacity=capacity
+            origin=(0.0, 0.0),
+            cell_size=0.1,
+            shape=(10, 10),
+            candidate_capacity=capacity,
         )
 
     too_few_slots = build(grid(12), x, active, 5, 0.1)
@@ -62,9 +71,10 @@ def test_deliberate_overflows():
 def test_particles_outside_domain_flagged_not_dropped(rng):
     x = rng.uniform(0.0, 1.0, (200, 2))
     x[:5] = [[-0.05, 0.5], [-0.08, 0.52], [1.3, 0.2], [1.32, 0.21], [0.5, -0.4]]
-    grid = Grid(origin=(0.0, 0.0), cell_size=0.1, shape=(10, 10), cell_capacity=40)
+    grid = Grid(origin=(0.0, 0.0), cell_size=0.1, shape=(10, 10), candidate_capacity=80)
     active = np.ones(200, bool)
     nbrs = build(grid, jnp.asarray(x), jnp.asarray(active), 60, 0.1)
+    assert not bool(nbrs.cell_overflow)
     out = np.asarray(nbrs.outside)
     assert out[:5].all() and not out[5:].any()
     # Escaped particles still find each other and the particles near the boundary.
@@ -75,6 +85,32 @@ def test_particles_outside_domain_flagged_not_dropped(rng):
 
 def test_nonfinite_positions_are_flagged():
     x = np.array([[0.5, 0.5], [np.nan, 0.5], [0.52, 0.5]])
-    grid = Grid(origin=(0.0, 0.0), cell_size=0.1, shape=(10, 10), cell_capacity=4)
+    grid = Grid(origin=(0.0, 0.0), cell_size=0.1, shape=(10, 10), candidate_capacity=4)
     nbrs = build(grid, jnp.asarray(x), jnp.ones(3, bool), 4, 0.1)
     assert bool(nbrs.outside[1])
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+def test_candidate_capacity_is_exact(rng, dim):
+    """`candidate_counts` (host, sizes the capacity) counts what `build` tests: the
+    fullest stencil fits exactly, one slot fewer overflows."""
+    x = rng.uniform(0.0, 1.0, (300, dim))
+    radius = 0.2
+
+    def grid(capacity):
+        return Grid(
+            origin=(0.0,) * dim,
+            cell_size=radius / 2,
+            shape=(10,) * dim,
+            candidate_capacity=capacity,
+            reach=2,
+        )
+
+    most = int(candidate_counts(grid(1), x).max())
+    fits = build(grid(most), jnp.asarray(x), jnp.ones(300, bool), 300, radius)
+    assert not bool(fits.cell_overflow)
+    np.testing.assert_array_equal(
+        listed(fits.index, 300), brute_force_neighbours(x, np.ones(300, bool), radius)
+    )
+    short = build(grid(most - 1), jnp.asarray(x), jnp.ones(300, bool), 300, radius)
+    assert bool(short.cell_overflow)

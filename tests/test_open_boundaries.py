@@ -72,11 +72,14 @@ def test_inflow_params_must_match_scene():
 def test_tail_weir_holds_water_above_its_crest():
     """With a tail weir the downstream level rises above the crest and the water
     spills over it (the outflow plane lies behind the weir). The impact of the
-    supercritical flow on the weir needs Courant 0.05 (at 0.2 it explodes at ~0.4 s,
-    see the closing note of the explicit/open-boundary work)."""
+    supercritical flow on the weir needs a small time step: at Courant 0.2 it
+    explodes at ~0.4 s (see the closing note of the explicit/open-boundary work); at
+    0.05 the splash is chaotic (a 1e-10 m round-off difference at 0.12 s grows to
+    0.1 m by 0.36 s) and with some summation orders a spray particle leaves the
+    domain at ~0.75 s; 0.04 holds."""
     l0 = 0.0075
     case = jaxmps.scenes.flume(
-        spacing=l0, bed_length=0.3, weir_height=0.06, t_end=0.8, courant=0.05
+        spacing=l0, bed_length=0.3, weir_height=0.06, t_end=0.8, courant=0.04
     )
     tr = _run(case, 0.8)
     t = np.asarray(tr.saved["time"])

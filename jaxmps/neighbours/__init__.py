@@ -1,6 +1,7 @@
 """Neighbour search: sort-based cell hashing with fixed capacities."""
 
 from ._grid import Grid as Grid
+from ._grid import candidate_counts as candidate_counts
 from ._list import Neighbours as Neighbours
 from ._list import build as build
 from ._list import cell_coordinates as cell_coordinates

@@ -57,12 +57,14 @@ def _body_case(config, fluid, box, walls, wall_kind, domain, speed, orientation)
         [np.full(len(fluid), -1), np.zeros(len(box), int), np.full(len(walls), -1)]
     )
     # A rotating body fills cells differently from the initial lattice: allow the
-    # densest packing of a cell of side r_e with margin.
+    # densest lattice packing of a particle's stencil box (5 cells of r_e / 2 a
+    # side), with margin.
+    stencil_box = 2.5 * discretisation(config)["r_e"]
     scene = case_scene(
         config,
         position,
         domain,
-        cell_capacity=math.ceil(1.5 * (discretisation(config)["r_e"] + 1.0) ** dim),
+        candidate_capacity=math.ceil(1.5 * (stencil_box + 1.0) ** dim),
     )
     params = case_params(config, dim, speed)
     state = make_state(scene, position, kind)

@@ -24,7 +24,7 @@ COMMON = {
     "rtol": None,
     "max_iterations": 2000,
     "max_neighbours": None,
-    "cell_capacity": None,
+    "candidate_capacity": None,
     "courant": 0.2,
     "domain_margin": None,
 }
@@ -66,7 +66,7 @@ def resolve(name: str, specific: dict[str, Any], overrides: dict[str, Any]) -> d
 
 
 # Parameters counted in whole numbers (None: derived).
-_WHOLE = ("dim", "max_iterations", "max_neighbours", "cell_capacity", "pool")
+_WHOLE = ("dim", "max_iterations", "max_neighbours", "candidate_capacity", "pool")
 
 
 def _check_type(scene: str, key: str, default: Any, value: Any) -> None:
@@ -127,18 +127,21 @@ def boundary_layers(config: dict) -> int:
     return geometry.layers_for(discretisation(config)["r_e"])
 
 
-def case_scene(config: dict, position, domain, *, cell_capacity=None, capacity=None):
+def case_scene(
+    config: dict, position, domain, *, candidate_capacity=None, capacity=None
+):
     """The Scene of a built-in case: the discretisation of the `solver` and `scheme`
-    settings, the `max_neighbours` / `cell_capacity` settings (`cell_capacity`
-    here is the scene's own default when the setting is None)."""
-    cells = config["cell_capacity"]
+    settings, the `max_neighbours` / `candidate_capacity` settings
+    (`candidate_capacity` here is the scene's own default when the setting is
+    None)."""
+    cells = config["candidate_capacity"]
     return make_scene(
         position,
         config["spacing"],
         domain,
         capacity=capacity,
         max_neighbours=config["max_neighbours"],
-        cell_capacity=cell_capacity if cells is None else cells,
+        candidate_capacity=candidate_capacity if cells is None else cells,
         **discretisation(config),
     )
 
