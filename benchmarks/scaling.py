@@ -1,4 +1,5 @@
-"""Step time vs particle count (2-D dam break), per solver, with its log-log slope.
+"""Step time vs particle count (2-D or 3-D dam break), per solver, with its log-log
+slope.
 
 Per size (`jaxmps.scenes.dam_break` at the spacing giving about that many particles,
 walls and dummies included; the column is first advanced 20 steps so that it moves):
@@ -10,8 +11,9 @@ log(ms/step) on log(particles) over all sizes.
 
     python benchmarks/scaling.py                       # float32, 1k-100k, ~10 min
     python benchmarks/scaling.py --sizes 1000 10000 --steps 10 --x64
+    python benchmarks/scaling.py --dim 3 --sizes 3000 30000 300000 --solvers explicit
 
-Writes results/scaling_<cpu|gpu>.{json,md}.
+Writes results/scaling_<cpu|gpu>.{json,md} (2-D) or scaling_3d_<cpu|gpu> (3-D).
 """
 
 import argparse
@@ -27,13 +29,25 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 
 
-def measure(solver: str, target: int, steps: int) -> dict:
+def spacing_for(target: int, dim: int, solver: str) -> float:
+    """The dam-break spacing whose capacity is about `target` particles (the count
+    scales as spacing^-dim; two corrections from a coarse reference)."""
+    import jaxmps
+
+    spacing = 0.146 / (20 if dim == 2 else 8)
+    for _ in range(2):
+        case = jaxmps.scenes.dam_break(spacing=spacing, solver=solver, dim=dim)
+        spacing *= (case.scene.capacity / target) ** (1 / dim)
+    return spacing
+
+
+def measure(solver: str, target: int, steps: int, dim: int = 2) -> dict:
     from step_throughput import _best_of, _lower_compile, observe_time
 
     import jaxmps
 
-    spacing = 2.808e-3 * (6986 / target) ** 0.5
-    case = jaxmps.scenes.dam_break(spacing=spacing, solver=solver)
+    spacing = spacing_for(target, dim, solver)
+    case = jaxmps.scenes.dam_break(spacing=spacing, solver=solver, dim=dim)
     scene, params = case.scene, case.params
     state = jaxmps.simulate(scene, params, case.state, 20, 20, throw=False).state
     args = (scene, params, state, steps, steps, observe_time)
@@ -52,6 +66,7 @@ def measure(solver: str, target: int, steps: int) -> dict:
     build_s, _, _ = _best_of(lambda: jitted(state.position), 5)
     ms = 1e3 * run / steps
     row = {
+        "dim": dim,
         "solver": solver,
         "spacing": spacing,
         "particles": int(scene.capacity),
@@ -80,13 +95,16 @@ def main(argv=None):
     p.add_argument("--solvers", nargs="+", default=["explicit", "semi_implicit"])
     p.add_argument("--steps", type=int, default=20)
     p.add_argument("--x64", action="store_true")
+    p.add_argument("--dim", type=int, default=2, choices=[2, 3])
     p.add_argument("--out", type=Path, default=None)
     args = p.parse_args(argv)
     jax.config.update("jax_enable_x64", args.x64)
     from _common import loadavg, machine_info
 
     info = machine_info()
-    rows = [measure(s, n, args.steps) for s in args.solvers for n in args.sizes]
+    rows = [
+        measure(s, n, args.steps, args.dim) for s in args.solvers for n in args.sizes
+    ]
     slopes = {}
     for s in args.solvers:
         sel = [r for r in rows if r["solver"] == s]
@@ -95,10 +113,11 @@ def main(argv=None):
         slopes[s] = float(np.polyfit(x, y, 1)[0]) if len(sel) > 1 else None
     info["loadavg_1min_end"] = loadavg()
     data = {"machine": info, "rows": rows, "slopes": slopes}
-    out = args.out or HERE / "results" / f"scaling_{jax.default_backend()}"
+    tag = "" if args.dim == 2 else "3d_"
+    out = args.out or HERE / "results" / f"scaling_{tag}{jax.default_backend()}"
     out.with_suffix(".json").write_text(json.dumps(data, indent=1))
     lines = [
-        "# Step time vs particle count: 2-D dam break",
+        f"# Step time vs particle count: {args.dim}-D dam break",
         "",
         f"- {info['platform']}, {info['cpu_model']}, {info['cpu_usable']} cores; "
         f"jax {info['jax']}; {info['dtype']}; git {info['git_commit']}",

@@ -1,8 +1,9 @@
-"""Side by side: `jaxmps` vs JAX-SPH (weakly compressible SPH) on a 2-D dam break.
+"""Side by side: `jaxmps` vs JAX-SPH and PySPH (weakly compressible SPH) on a 2-D
+dam break.
 
-Both codes run the same dam break (a 0.146 x 0.292 m water column at the left wall
-of a 0.584 m tank, 0.438 m high) at matched total particle counts (fluid + walls,
-dummies included) of about 7 k, 25 k and 90 k:
+jaxmps and JAX-SPH run the same dam break (a 0.146 x 0.292 m water column at the
+left wall of a 0.584 m tank, 0.438 m high) at matched total particle counts (fluid
++ walls, dummies included) of about 7 k, 25 k and 90 k:
 
 * JAX-SPH 0.1.0 (PyPI `jax-sph`): its WCSPH solver with its own dam-break settings
   (density evolution, artificial viscosity 0.1, generalized wall BC, quintic spline
@@ -15,14 +16,22 @@ dummies included) of about 7 k, 25 k and 90 k:
   nearest to JAX-SPH's count; rolled out with `jaxmps.simulate(..., throw=False)`
   and an observe function that saves only the time.
 
+* PySPH 1.0b2 (PyPI `pysph`, compiled C through Cython, not differentiable): its
+  own `dam_break_2d` example (a 1 x 2 m column in a 4 x 4 m tank) with h and m
+  reset from dx (`_pysph_worker.py`), dx = 1/k m with the count nearest the target,
+  OpenMP on all cores, double precision, once per size; built on first use into
+  `--pysph-venv` (default `benchmarks/.venv-pysph`; some 8 minutes on 2 cores).
+  When the build fails or takes longer than `--pysph-limit` the reason is printed
+  and saved, and the other codes are still measured.
+
 JAX-SPH needs Python <= 3.11.0 and pins jax 0.4.29, so it runs in its own virtual
 environment (created on first use under `--peer-venv`, default
 `benchmarks/.venv-jaxsph`, from `--peer-python` or the first python3.10 / 3.9 /
 ~/.pyenv/versions/3.10* found; `pip install jax-sph==0.1.0`). If none can be made
 the script says why and measures jaxmps only.
 
-Every (code, dtype, size) runs in a fresh subprocess, alternating jaxmps and JAX-SPH
-(per size: jaxmps float64, JAX-SPH float64, jaxmps float32, JAX-SPH float32, ...),
+Every (code, dtype, size) runs in a fresh subprocess, alternating the codes (per
+size: jaxmps float64, JAX-SPH float64, PySPH, jaxmps float32, JAX-SPH float32, ...),
 so that background load hits both. In each: compile time (trace + lower, XLA
 compile) via `.lower(...).compile()`, then one untimed warm-up call and the best of
 `--repeats` timed calls of `--steps` steps, each ended by `jax.block_until_ready`;
@@ -31,6 +40,7 @@ run time / (steps x dt) (the codes' dt differ), and the peak RSS of the subproce
 
 Usage:
     python benchmarks/side_by_side.py                          # 7k and 25k, 200 steps
+    python benchmarks/side_by_side.py --sizes 90k --steps 50 --repeats 1 --append
     python benchmarks/side_by_side.py --sizes 7k --steps 20 --out /tmp/quick
     python benchmarks/side_by_side.py --sizes 7k 25k 90k --dtypes float64
     python benchmarks/side_by_side.py --peer-venv /path/to/venv --solvers explicit
@@ -51,6 +61,8 @@ from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
 WORKER = HERE / "_jaxsph_worker.py"
+PYSPH_WORKER = HERE / "_pysph_worker.py"
+PYSPH_VERSION = "1.0b2"
 COLUMN_WIDTH = 0.146  # m, as jaxmps.scenes.dam_break's default
 JAX_SPH_VERSION = "0.1.0"
 SIZES = {"7k": 7_000, "25k": 25_000, "90k": 90_000}
@@ -251,12 +263,26 @@ def ensure_peer(venv: Path, explicit_python: str | None) -> tuple[str | None, st
     return str(python), f"created venv {venv} ({base})"
 
 
-def try_pysph(venv: Path, limit_s: float) -> dict:
-    """One attempt to pip-install PySPH into its own venv within `limit_s`."""
+def _venv_has_pysph(python: Path) -> bool:
+    check = (
+        "import importlib.metadata as m; "
+        f"assert m.version('pysph') == '{PYSPH_VERSION}'"
+    )
+    return python.exists() and (
+        subprocess.run([str(python), "-c", check], capture_output=True).returncode == 0
+    )
+
+
+def ensure_pysph(venv: Path, limit_s: float) -> dict:
+    """A venv with PySPH (made and built if needed, within `limit_s`)."""
     t0 = time.perf_counter()
+    python = venv / "bin" / "python"
+    if _venv_has_pysph(python):
+        return {"python": str(python), "status": f"using existing venv {venv}"}
+    print(f"creating {venv} and building pysph=={PYSPH_VERSION} (several minutes)")
     cmds = [
         [sys.executable, "-m", "venv", "--clear", str(venv)],
-        [str(venv / "bin" / "python"), "-m", "pip", "install", "-q", "pysph"],
+        [str(python), "-m", "pip", "install", "-q", f"pysph=={PYSPH_VERSION}"],
     ]
     for cmd in cmds:
         left = limit_s - (time.perf_counter() - t0)
@@ -264,24 +290,42 @@ def try_pysph(venv: Path, limit_s: float) -> dict:
             proc = subprocess.run(cmd, capture_output=True, text=True, timeout=left)
         except subprocess.TimeoutExpired:
             return {
-                "installed": False,
-                "seconds": time.perf_counter() - t0,
-                "reason": f"`{' '.join(cmd[-3:])}` did not finish within "
+                "python": None,
+                "status": f"`{' '.join(cmd[-3:])}` did not finish within "
                 f"{limit_s:.0f} s (PySPH is a source distribution: pip builds it "
-                "and its build dependencies - Cython, compyle, cyarray - first)",
+                "and its build dependencies - Cython, compyle, cyarray - first; "
+                "raise --pysph-limit)",
             }
         if proc.returncode != 0:
             tail = (proc.stderr or proc.stdout).strip().splitlines()[-3:]
             return {
-                "installed": False,
-                "seconds": time.perf_counter() - t0,
-                "reason": f"`{' '.join(cmd[-3:])}` failed: {' | '.join(tail)}",
+                "python": None,
+                "status": f"`{' '.join(cmd[-3:])}` failed: {' | '.join(tail)}",
             }
-    return {
-        "installed": True,
-        "seconds": time.perf_counter() - t0,
-        "reason": "installed; no PySPH dam break is measured by this script",
-    }
+    seconds = time.perf_counter() - t0
+    return {"python": str(python), "status": f"built {venv} in {seconds:.0f} s"}
+
+
+def pysph_match(python: str, target: int) -> tuple[float, int]:
+    """(dx = 1/k m, particles) of PySPH's dam break with the count nearest `target`
+    (whole k, so that its fluid block is a whole number of spacings)."""
+    cache: dict[int, int] = {}
+
+    def count(k: int) -> int:
+        if k not in cache:
+            cmd = [python, str(PYSPH_WORKER), "--dx", repr(1.0 / k), "--count-only"]
+            out = subprocess.run(cmd, capture_output=True, text=True, check=True)
+            cache[k] = json.loads(out.stdout.strip().splitlines()[-1])["particles"]
+        return cache[k]
+
+    # The example's 1 x 2 m column in a 4 x 4 m tank: ~2 k^2 fluid particles.
+    k = max(5, round((target / 3.0) ** 0.5))
+    while count(k) < target:
+        k = round(k * 1.2) + 1
+    while k > 5 and count(k - 1) >= target:
+        k -= 1
+    best = min((k - 1, k), key=lambda j: abs(count(j) - target))
+    return 1.0 / best, count(best)
 
 
 # ----------------------------------------------------------------------------- driver
@@ -345,11 +389,40 @@ def run_jaxsph(python: str, n: int, dtype: str, args) -> dict:
     return _run(cmd, args.timeout)
 
 
+def run_pysph(python: str, dx: float, args) -> dict:
+    cmd = [
+        python,
+        str(PYSPH_WORKER),
+        "--dx",
+        repr(dx),
+        "--steps",
+        str(args.steps),
+        "--repeats",
+        str(args.repeats),
+        "--openmp",
+    ]
+    r = _run(cmd, args.timeout)
+    if "error" not in r:
+        # Common columns: PySPH's setup (code generation + Cython compile or
+        # cache load + 50 warm-up steps) stands in the compile column.
+        r.update(
+            capacity=r["particles"],
+            trace_lower_s=0.0,
+            compile_s=r["setup_s"],
+            run_s_best=r["run_s"],
+            dtype="float64",
+            solver="WCSPH",
+        )
+    return r
+
+
 def _g(x, fmt=".3g"):
     return "-" if x is None else format(x, fmt)
 
 
 def _label(r: dict) -> str:
+    if r["code"] == "PySPH":
+        return f"PySPH (OpenMP, {r['n_threads']} threads)"
     return "JAX-SPH" if r["code"] == "jax-sph" else f"jaxmps {r['solver']}"
 
 
@@ -366,27 +439,38 @@ def ratios(rows: list[dict]) -> list[dict]:
     for (size, dtype, solver, code), r in best.items():
         if code != "jaxmps":
             continue
+        row = {
+            "size": size,
+            "dtype": dtype,
+            "solver": solver,
+            "jaxmps_particles": r["capacity"],
+            "jaxmps_particle_steps_per_s": r["particle_steps_per_s"],
+            "jaxmps_wall_per_simulated_s": r["wall_per_simulated_s"],
+        }
         peer = best.get((size, dtype, "SPH", "jax-sph"))
-        if peer is None:
-            continue
-        out.append(
-            {
-                "size": size,
-                "dtype": dtype,
-                "solver": solver,
-                "jaxmps_particles": r["capacity"],
-                "jaxsph_particles": peer["capacity"],
-                "jaxmps_particle_steps_per_s": r["particle_steps_per_s"],
-                "jaxsph_particle_steps_per_s": peer["particle_steps_per_s"],
-                "throughput_ratio": r["particle_steps_per_s"]
+        if peer is not None:
+            row.update(
+                jaxsph_particles=peer["capacity"],
+                jaxsph_particle_steps_per_s=peer["particle_steps_per_s"],
+                throughput_ratio=r["particle_steps_per_s"]
                 / peer["particle_steps_per_s"],
-                "jaxmps_wall_per_simulated_s": r["wall_per_simulated_s"],
-                "jaxsph_wall_per_simulated_s": peer["wall_per_simulated_s"],
-                "simulated_time_speed_ratio": peer["wall_per_simulated_s"]
+                jaxsph_wall_per_simulated_s=peer["wall_per_simulated_s"],
+                simulated_time_speed_ratio=peer["wall_per_simulated_s"]
                 / r["wall_per_simulated_s"],
-                "dt_ratio": r["dt"] / peer["dt"],
-            }
-        )
+                dt_ratio=r["dt"] / peer["dt"],
+            )
+        # PySPH computes in double precision only: both jaxmps dtypes are
+        # compared with its one run per size.
+        pysph = best.get((size, "float64", "WCSPH", "PySPH"))
+        if pysph is not None:
+            row.update(
+                pysph_particles=pysph["capacity"],
+                pysph_particle_steps_per_s=pysph["particle_steps_per_s"],
+                pysph_ratio=r["particle_steps_per_s"] / pysph["particle_steps_per_s"],
+                pysph_wall_per_simulated_s=pysph["wall_per_simulated_s"],
+            )
+        if peer is not None or pysph is not None:
+            out.append(row)
     return out
 
 
@@ -394,7 +478,7 @@ def markdown(info: dict, rows, ratio_rows, peer: dict, pysph, args) -> str:
     tag = f"CPU ({info['cpu_usable']} cores)" if info["backend"] == "cpu" else "GPU"
     pv = next((r["versions"] for r in rows if r.get("code") == "jax-sph"), None)
     lines = [
-        f"# Side by side: jaxmps vs JAX-SPH, 2-D dam break, {tag}",
+        f"# Side by side: jaxmps vs JAX-SPH and PySPH, 2-D dam break, {tag}",
         "",
         f"- machine: {info['platform']}, {info['cpu_model']}, "
         f"{info['cpu_usable']} usable / {info['cpu_count']} CPUs",
@@ -413,23 +497,24 @@ def markdown(info: dict, rows, ratio_rows, peer: dict, pysph, args) -> str:
         f"- 1-min load average: {_g(info.get('loadavg_1min_start'), '.2f')} at "
         f"start, {_g(info.get('loadavg_1min_end'), '.2f')} at end (> core count "
         "means other processes competed for the CPU)",
-        f"- {args.steps} steps; run = best of {args.repeats} calls after one untimed "
-        f"warm-up call (one call where the warm-up took > {args.max_timed_s:g} s; "
+        "- run = best of --repeats calls (see `settings` in the JSON; 1 at 90k) "
+        "after one untimed warm-up call (one call where the warm-up took > "
+        f"{args.max_timed_s:g} s; "
         "`run_s_all` in the JSON); compile (trace+lower / XLA) measured "
         "separately; every row is a fresh subprocess, jaxmps and JAX-SPH "
         "alternating; peak RSS is that subprocess's (Python, jax and the "
         "compiler included).",
         "",
         "| size | code | dtype | particles (fluid) | spacing [mm] | dt [µs] "
-        "| compile [s] | run [s] | ms/step | particle-steps/s | wall / sim. s [s] "
-        "| peak RSS [MiB] | ok |",
-        "|---|---|---|---|---|---|---|---|---|---|---|---|---|",
+        "| compile [s] | steps | run [s] | ms/step | particle-steps/s "
+        "| wall / sim. s [s] | peak RSS [MiB] | ok |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for r in rows:
         if "error" in r:
             lines.append(
                 f"| {r['size']} | {r['code']} | {r['dtype_requested']} "
-                f"| {r['error']} |" + " |" * 9
+                f"| {r['error']} |" + " |" * 10
             )
             continue
         spacing = r.get("spacing", r.get("dx"))
@@ -439,35 +524,61 @@ def markdown(info: dict, rows, ratio_rows, peer: dict, pysph, args) -> str:
             f"| {1e6 * r['dt']:.1f} "
             f"| {r['trace_lower_s'] + r['compile_s']:.1f} "
             f"({r['trace_lower_s']:.1f} / {r['compile_s']:.1f}) "
-            f"| {r['run_s_best']:.2f} | {r['ms_per_step']:.1f} "
+            f"| {r['n_steps']} | {r['run_s_best']:.2f} | {r['ms_per_step']:.1f} "
             f"| {r['particle_steps_per_s']:.3g} | {r['wall_per_simulated_s']:.0f} "
             f"| {r['peak_rss_mib']:.0f} | {'yes' if r['finite'] else 'NO'} |"
         )
     if ratio_rows:
         lines += [
             "",
-            "## Ratios (jaxmps / JAX-SPH; > 1 means jaxmps is faster)",
+            "## Ratios (jaxmps / peer; > 1 means jaxmps is faster)",
             "",
-            "| size | dtype | jaxmps solver | particles jaxmps / JAX-SPH "
-            "| particle-steps/s jaxmps / JAX-SPH | **throughput ratio** "
-            "| dt ratio | wall per sim. s JAX-SPH / jaxmps |",
-            "|---|---|---|---|---|---|---|---|",
+            "| size | dtype | jaxmps solver | particles jaxmps / JAX-SPH / PySPH "
+            "| particle-steps/s jaxmps / JAX-SPH / PySPH "
+            "| **vs JAX-SPH** | **vs PySPH** | dt ratio vs JAX-SPH "
+            "| wall per sim. s: jaxmps / JAX-SPH / PySPH [s] |",
+            "|---|---|---|---|---|---|---|---|---|",
         ]
         for q in ratio_rows:
             lines.append(
                 f"| {q['size']} | {q['dtype']} | {q['solver']} "
-                f"| {q['jaxmps_particles']} / {q['jaxsph_particles']} "
+                f"| {q['jaxmps_particles']} / {q.get('jaxsph_particles', '-')} / "
+                f"{q.get('pysph_particles', '-')} "
                 f"| {q['jaxmps_particle_steps_per_s']:.3g} / "
-                f"{q['jaxsph_particle_steps_per_s']:.3g} "
-                f"| **{q['throughput_ratio']:.2f}** | {q['dt_ratio']:.2f} "
-                f"| {q['simulated_time_speed_ratio']:.2f} |"
+                f"{_g(q.get('jaxsph_particle_steps_per_s'))} / "
+                f"{_g(q.get('pysph_particle_steps_per_s'))} "
+                f"| **{_g(q.get('throughput_ratio'), '.2f')}** "
+                f"| **{_g(q.get('pysph_ratio'), '.2f')}** "
+                f"| {_g(q.get('dt_ratio'), '.2f')} "
+                f"| {q['jaxmps_wall_per_simulated_s']:.0f} / "
+                f"{_g(q.get('jaxsph_wall_per_simulated_s'), '.0f')} / "
+                f"{_g(q.get('pysph_wall_per_simulated_s'), '.0f')} |"
             )
+        per_sim = {}
+        for q in ratio_rows:
+            per_sim.setdefault((q["size"], q["dtype"]), {})[q["solver"]] = q
+        pairs = [(k, v) for k, v in per_sim.items() if len(v) == 2]
+        if pairs:
+            lines += [
+                "",
+                "## Semi-implicit vs explicit MPS per simulated second",
+                "",
+                "| size | dtype | wall per sim. s explicit / semi-implicit [s] "
+                "| explicit / semi-implicit |",
+                "|---|---|---|---|",
+            ]
+            for (size, dtype), v in pairs:
+                e = v["explicit"]["jaxmps_wall_per_simulated_s"]
+                si = v["semi_implicit"]["jaxmps_wall_per_simulated_s"]
+                lines.append(
+                    f"| {size} | {dtype} | {e:.0f} / {si:.0f} | {e / si:.2f} |"
+                )
     lines += [
         "",
-        "Throughput ratio = particle-steps/s of jaxmps / of JAX-SPH (cost per "
-        "particle and step). The last column compares the wall time per simulated "
-        "second, which also contains the two codes' different time steps (dt ratio "
-        "= jaxmps dt / JAX-SPH dt) and the small difference in particle count.",
+        "Throughput ratio = particle-steps/s of jaxmps / of the peer (cost per "
+        "particle and step). The wall time per simulated second also contains the "
+        "codes' different time steps (dt ratio = jaxmps dt / JAX-SPH dt) and the "
+        "small differences in particle count.",
         "",
         "JAX-SPH case: WCSPH (`solver.name = SPH`), density evolution, artificial "
         "viscosity alpha = 0.1, generalized wall BC, quintic spline kernel (h = dx, "
@@ -475,13 +586,16 @@ def markdown(info: dict, rows, ratio_rows, peer: dict, pysph, args) -> str:
         "1000, eta = 1e-3 Pa s, g = 9.81, c = 10 sqrt(2 g H) = 23.9 m/s, dt = 0.25 dx "
         "/ (c + u_ref); neighbour list `jaxmd_vmap` (rebuilt every step, inside the "
         "scan). jaxmps: `scenes.dam_break` defaults (open tank, walls + dummies).",
+        "",
+        "PySPH case (`_pysph_worker.py`): its `dam_break_2d` example (1 x 2 m column, "
+        "4 x 4 m tank, WCSPH, Wendland quintic kernel, PEC integrator, adaptive dt "
+        "at CFL 0.3) with h = 1.3 dx and m = rho dx^2 reset from dx; compiled C via "
+        "Cython, OpenMP on all cores, double precision; its compile column is the "
+        "set-up (code generation + compile or cache load + 50 warm-up steps), "
+        "and it runs once per size (float64 rows).",
     ]
     if pysph is not None:
-        lines += [
-            "",
-            f"PySPH: {'installed' if pysph['installed'] else 'not installed'} "
-            f"({pysph['seconds']:.0f} s): {pysph['reason']}",
-        ]
+        lines += ["", f"PySPH: {pysph['status']}"]
     return "\n".join(lines) + "\n"
 
 
@@ -510,9 +624,9 @@ def main(argv=None):
     p.add_argument(
         "--solvers",
         nargs="+",
-        default=["explicit"],
+        default=["explicit", "semi_implicit"],
         choices=["explicit", "semi_implicit"],
-        help="jaxmps solver(s) (default explicit, the weakly compressible one)",
+        help="jaxmps solver(s) (default both)",
     )
     p.add_argument(
         "--rounds",
@@ -528,12 +642,25 @@ def main(argv=None):
         help="JAX-SPH venv (created if missing; default benchmarks/.venv-jaxsph)",
     )
     p.add_argument("--no-peer", action="store_true", help="measure jaxmps only")
+    p.add_argument("--no-pysph", action="store_true", help="skip PySPH")
     p.add_argument(
-        "--try-pysph",
-        action="store_true",
-        help="also try once to pip-install PySPH (own venv, --pysph-limit s)",
+        "--pysph-venv",
+        type=Path,
+        default=HERE / ".venv-pysph",
+        help="PySPH venv (built if missing; default benchmarks/.venv-pysph)",
     )
-    p.add_argument("--pysph-limit", type=float, default=120.0)
+    p.add_argument(
+        "--pysph-limit",
+        type=float,
+        default=1800.0,
+        help="give up building PySPH after this many seconds (8 min measured here)",
+    )
+    p.add_argument(
+        "--append",
+        action="store_true",
+        help="keep the rows already in the --out JSON and add these (e.g. a 90k "
+        "row run with fewer steps)",
+    )
     p.add_argument(
         "--timeout", type=float, default=None, help="limit per subprocess [s]"
     )
@@ -564,15 +691,18 @@ def main(argv=None):
         peer_python, status = ensure_peer(args.peer_venv, args.peer_python)
     peer = {"python": peer_python, "status": status}
     print(f"JAX-SPH: {status}", flush=True)
-    pysph = None
-    if args.try_pysph:
-        pysph = try_pysph(HERE / ".venv-pysph", args.pysph_limit)
-        print(f"PySPH: {pysph['reason']}", flush=True)
+    if args.no_pysph:
+        pysph = {"python": None, "status": "skipped (--no-pysph)"}
+    else:
+        pysph = ensure_pysph(args.pysph_venv, args.pysph_limit)
+    print(f"PySPH: {pysph['status']}", flush=True)
 
     backend = "gpu" if info["backend"] == "gpu" else "cpu"
     out = args.out or HERE / "results" / f"side_by_side_{backend}"
     out.parent.mkdir(parents=True, exist_ok=True)
     rows: list[dict] = []
+    if args.append and Path(f"{out}.json").exists():
+        rows = json.loads(Path(f"{out}.json").read_text())["runs"]
 
     def save():
         info["loadavg_1min_end"] = loadavg()
@@ -608,15 +738,22 @@ def main(argv=None):
             + ", ".join(f"{s} m={m} ({c})" for s, (m, c) in matches.items()),
             flush=True,
         )
+        if pysph["python"]:
+            pysph_dx, pysph_n = pysph_match(pysph["python"], target)
+            print(f"  PySPH dx={pysph_dx:.4g} m ({pysph_n} particles)", flush=True)
         for dtype in args.dtypes:
             for rnd in range(args.rounds):
                 jobs = [("jaxmps", s) for s in args.solvers]
                 if peer_python:
                     jobs.append(("jax-sph", "SPH"))
+                if pysph["python"] and dtype == "float64":
+                    jobs.append(("PySPH", "WCSPH"))
                 for code, solver in jobs:
                     t0 = time.perf_counter()
                     if code == "jaxmps":
                         r = run_jaxmps(matches[solver][0], solver, dtype, args)
+                    elif code == "PySPH":
+                        r = run_pysph(pysph["python"], pysph_dx, args)
                     else:
                         r = run_jaxsph(peer_python, n, dtype, args)
                     r.update(code=code, size=size, dtype_requested=dtype, round=rnd)
