@@ -239,6 +239,16 @@ BAD_INPUTS = {
         lambda: jaxmps.scenes.hydrostatic(dim=2.5),
         "expects a whole number",
     ),
+    "the old per-cell capacity setting": (
+        lambda: jaxmps.scenes.hydrostatic(cell_capacity=20),
+        "cell_capacity was replaced by candidate_capacity",
+    ),
+    "a neighbour stencil reaching no cells": (
+        lambda: jaxmps.make_scene(
+            [[0.0, 0.0], [0.1, 0.0]], 0.1, ([-1, -1], [1, 1]), reach=0
+        ),
+        "reach must be a positive integer",
+    ),
     "a flag given a number": (
         lambda: jaxmps.scenes.flume(initial_fill=3),
         "expects true or false",

@@ -33,9 +33,27 @@ SOLVERS = ("semi_implicit", "explicit")
 SCHEMES = ("standard", "high_accuracy")
 
 
+def _renamed(overrides: dict[str, Any]) -> dict[str, Any]:
+    """Settings of earlier versions: `cell_capacity` (particles per cell) became
+    `candidate_capacity` (particles in a particle's stencil cells). Run files of
+    earlier versions store it as None (the default), which is dropped; a value has
+    no equivalent and is refused with the new name."""
+    if "cell_capacity" not in overrides:
+        return overrides
+    overrides = dict(overrides)
+    if overrides.pop("cell_capacity") is not None:
+        raise ValueError(
+            "cell_capacity was replaced by candidate_capacity, the most particles "
+            "in the neighbour-search cells around one particle (not in one cell); "
+            "set `candidate_capacity=...`, or leave it to the default."
+        )
+    return overrides
+
+
 def resolve(name: str, specific: dict[str, Any], overrides: dict[str, Any]) -> dict:
     """Merge defaults and overrides; unknown names are an error listing valid ones."""
     defaults = {**COMMON, **specific}  # a scene may change a common default
+    overrides = _renamed(overrides)
     unknown = sorted(set(overrides) - set(defaults))
     if unknown:
         raise ValueError(
