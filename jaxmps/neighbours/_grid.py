@@ -56,6 +56,12 @@ class Grid(eqx.Module):
         return self.cell_size * self.reach
 
 
+def stencil(dim: int, reach: int) -> np.ndarray:
+    """All cell offsets in (-reach..reach)^dim, shape ((2 reach + 1)^dim, dim)."""
+    offsets = range(-reach, reach + 1)
+    return np.array(list(itertools.product(offsets, repeat=dim)), dtype=np.int32)
+
+
 def candidate_counts(grid: Grid, position) -> np.ndarray:
     """Host-side (NumPy): for each point, the number of points in its stencil cells,
     i.e. the candidates `neighbours.build` tests for it (used to size
@@ -71,6 +77,6 @@ def candidate_counts(grid: Grid, position) -> np.ndarray:
     counts = np.zeros(tuple(n + 2 * s for n in grid.shape), dtype=int)
     np.add.at(counts, tuple((coords + s).T), 1)
     total = np.zeros(len(position), dtype=int)
-    for offset in itertools.product(range(-s, s + 1), repeat=dim):
-        total += counts[tuple((coords + s + np.asarray(offset)).T)]
+    for offset in stencil(dim, s):
+        total += counts[tuple((coords + s + offset).T)]
     return total

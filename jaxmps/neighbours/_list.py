@@ -22,15 +22,13 @@ particles actually in the stencil cells (about 3x the neighbour count with
 reach 2), where fixed per-cell slots tested 9 x the fullest cell's capacity.
 """
 
-import itertools
-
 import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Bool, Float, Int
 
-from ._grid import Grid
+from ._grid import Grid, stencil
 
 
 class Neighbours(eqx.Module):
@@ -50,11 +48,6 @@ class Neighbours(eqx.Module):
     neighbour_overflow: Bool[Array, ""]
     cell_overflow: Bool[Array, ""]
     outside: Bool[Array, " n"]
-
-
-def _stencil(dim: int, reach: int = 1) -> np.ndarray:
-    offsets = range(-reach, reach + 1)
-    return np.array(list(itertools.product(offsets, repeat=dim)), dtype=np.int32)
 
 
 def _flatten(coords: Int[Array, "... d"], shape: tuple[int, ...]) -> Int[Array, "..."]:
@@ -149,7 +142,7 @@ def build(
 
     # The stencil as rows along the last axis: in sorted order each row's cells
     # (2s + 1 consecutive cell ids) hold one contiguous range of particles.
-    lead = jnp.asarray(_stencil(dim - 1, s)).reshape(-1, dim - 1)  # (R, d - 1)
+    lead = jnp.asarray(stencil(dim - 1, s)).reshape(-1, dim - 1)  # (R, d - 1)
     rows = lead.shape[0]
     lead_shape = jnp.asarray(grid.shape[:-1], dtype=jnp.int32)[None, None, :]
     row_lead = coords[:, None, :-1] + lead[None, :, :]  # (n, R, d - 1)

@@ -152,14 +152,14 @@ def case_scene(
     settings, the `max_neighbours` / `candidate_capacity` settings
     (`candidate_capacity` here is the scene's own default when the setting is
     None)."""
-    cells = config["candidate_capacity"]
+    setting = config["candidate_capacity"]
     return make_scene(
         position,
         config["spacing"],
         domain,
         capacity=capacity,
         max_neighbours=config["max_neighbours"],
-        candidate_capacity=candidate_capacity if cells is None else cells,
+        candidate_capacity=candidate_capacity if setting is None else setting,
         **discretisation(config),
     )
 
