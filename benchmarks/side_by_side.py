@@ -494,6 +494,12 @@ def markdown(info: dict, rows, ratio_rows, peer: dict, pysph, args) -> str:
             else "not run"
         )
         + f" ({peer['status']})",
+        "- rows by commit (None: an earlier version that did not record it): "
+        + "; ".join(
+            f"{c}: "
+            + ", ".join(sorted({_label(r) for r in rows if r.get("git_commit") == c}))
+            for c in sorted({r.get("git_commit") for r in rows}, key=str)
+        ),
         f"- 1-min load average: {_g(info.get('loadavg_1min_start'), '.2f')} at "
         f"start, {_g(info.get('loadavg_1min_end'), '.2f')} at end (> core count "
         "means other processes competed for the CPU)",
@@ -661,7 +667,8 @@ def main(argv=None):
         "--append",
         action="store_true",
         help="keep the rows already in the --out JSON and add these (e.g. a 90k "
-        "row run with fewer steps)",
+        "row run with fewer steps); rows of the (size, dtype, code, solver) "
+        "measured now replace the old ones",
     )
     p.add_argument(
         "--timeout", type=float, default=None, help="limit per subprocess [s]"
@@ -703,8 +710,29 @@ def main(argv=None):
     out = args.out or HERE / "results" / f"side_by_side_{backend}"
     out.parent.mkdir(parents=True, exist_ok=True)
     rows: list[dict] = []
+    saved_peer, saved_pysph = peer, pysph
     if args.append and Path(f"{out}.json").exists():
-        rows = json.loads(Path(f"{out}.json").read_text())["runs"]
+        old = json.loads(Path(f"{out}.json").read_text())
+        rows = old["runs"]
+        kept = "; its rows are from an earlier run, kept by --append"
+        if not peer_python and old.get("peer", {}).get("python"):
+            saved_peer = {**old["peer"], "status": old["peer"]["status"] + kept}
+        if not pysph["python"] and old.get("pysph", {}).get("python"):
+            saved_pysph = {**old["pysph"], "status": old["pysph"]["status"] + kept}
+        codes = {("jaxmps", s) for s in args.solvers}
+        if peer_python:
+            codes.add(("jax-sph", "SPH"))
+        if pysph["python"]:
+            codes.add(("PySPH", "WCSPH"))
+        rows = [
+            r
+            for r in rows
+            if not (
+                r["size"] in args.sizes
+                and r["dtype_requested"] in args.dtypes
+                and (r["code"], r.get("solver")) in codes
+            )
+        ]
 
     def save():
         info["loadavg_1min_end"] = loadavg()
@@ -722,13 +750,13 @@ def main(argv=None):
                 "rounds": args.rounds,
             },
             "machine": info,
-            "peer": peer,
-            "pysph": pysph,
+            "peer": saved_peer,
+            "pysph": saved_pysph,
             "runs": rows,
             "ratios": ratio_rows,
         }
         Path(f"{out}.json").write_text(json.dumps(payload, indent=2) + "\n")
-        md = markdown(info, rows, ratio_rows, peer, pysph, args)
+        md = markdown(info, rows, ratio_rows, saved_peer, saved_pysph, args)
         Path(f"{out}.md").write_text(md)
         return md
 
@@ -760,6 +788,7 @@ def main(argv=None):
                         r = run_jaxsph(peer_python, n, dtype, args)
                     r.update(code=code, size=size, dtype_requested=dtype, round=rnd)
                     r.setdefault("solver", solver)
+                    r["git_commit"] = info["git_commit"]
                     rows.append(r)
                     if "error" in r:
                         msg = r["error"]

@@ -266,6 +266,14 @@ BAD_INPUTS = {
         lambda: jaxmps.scenes.hydrostatic(solver="implicit"),
         "solver='implicit' is not available",
     ),
+    "unknown preconditioner": (
+        lambda: jaxmps.scenes.hydrostatic(preconditioner="ilu"),
+        r"preconditioner='ilu' is not available; valid: \('multigrid', 'jacobi'\)",
+    ),
+    "multigrid over-correction of 2 or more": (
+        lambda: jaxmps.fluid.Multigrid(correction=2.0),
+        r"Multigrid.correction must lie in \(0, 2\)",
+    ),
     "explicit with the high-accuracy scheme": (
         lambda: jaxmps.scenes.hydrostatic(solver="explicit", scheme="high_accuracy"),
         "use solver=semi_implicit",

@@ -1,6 +1,7 @@
 import jax
 import jax.numpy as jnp
 import numpy as np
+import pytest
 from helpers import small_tank
 
 import jaxmps
@@ -131,3 +132,115 @@ def test_discrete_operator_gain_below_stability_bound():
         np.linalg.solve(pred[np.ix_(idx, idx)], j[np.ix_(idx, idx)])
     )
     assert 1.2 < gain.real.max() < 1.5
+
+
+def _dense(f, n):
+    return np.asarray(jax.vmap(f)(jnp.eye(n)).T)
+
+
+def _lattice_system(dim, size, rng):
+    """A jittered fluid lattice, its top layers free surface: (scene, x, system)."""
+    from jaxmps.fluid import assemble_pressure_system
+    from jaxmps.geometry import block
+
+    x = block([0.0] * dim, [size] * dim, 1.0)
+    x = jnp.asarray(x + rng.uniform(-0.05, 0.05, x.shape))
+    n = x.shape[0]
+    kind = jnp.zeros(n, jnp.int32)
+    act = jnp.ones(n, bool)
+    scene = jaxmps.make_scene(
+        np.asarray(x), 1.0, (np.full(dim, -3.0), np.full(dim, size + 3.0))
+    )
+    nbrs = neighbours.build(scene.grid, x, act, scene.max_neighbours, scene.r_e)
+    pairs = make_pairs(nbrs.index, x, scene.weight, scene.r_e)
+    surface = x[:, -1] > size - 1.6  # the top two layers carry p = 0
+    return scene, x, assemble_pressure_system(pairs, kind, act, surface)
+
+
+@pytest.mark.parametrize("dim, size", [(2, 14), (3, 6)])
+def test_multigrid_preconditioner_is_spd_and_clusters_the_spectrum(dim, size, rng):
+    """M^-1 (a symmetric V-cycle) is symmetric positive definite, and the spectrum
+    of M^-1 A is far tighter than Jacobi's (measured: condition number 5.9 vs 256
+    in 2-D, 3.8 vs 32 in 3-D)."""
+    from jaxmps.fluid import Multigrid
+
+    scene, x, system = _lattice_system(dim, size, rng)
+    n = x.shape[0]
+    mg = Multigrid(coarsest_cells=8)
+    assert len(mg.layout(scene)[2]) >= 3  # really multilevel
+    m = _dense(mg(scene, x, system), n)
+    a = _dense(system.matvec, n)
+    np.testing.assert_allclose(m, m.T, atol=1e-12 * np.abs(m).max())
+    assert np.linalg.eigvalsh(m).min() > 0
+
+    def condition(pre):
+        ev = np.linalg.eigvals(pre @ a).real
+        return ev.max() / ev.min()
+
+    jacobi = condition(np.diag(1.0 / np.diag(a)))
+    multigrid = condition(m)
+    assert multigrid < 0.25 * jacobi
+
+
+def test_multigrid_cg_matches_dense_gradient_and_vmap(rng):
+    """The multigrid-preconditioned solve gives the dense solution in fewer
+    iterations than Jacobi, its implicit gradient matches finite differences
+    (the preconditioner carries no gradient), and vmap equals a loop."""
+    import functools
+
+    from jaxmps.fluid import Multigrid
+
+    scene, state, pairs, surface = _system(rng)
+    n = state.position.shape[0]
+    mg = functools.partial(Multigrid(coarsest_cells=8), scene, state.position)
+    matvec, _, in_system = pressure_system(pairs, state.kind, state.active, surface)
+    a = _dense(matvec, n)
+    b0 = jnp.asarray(rng.normal(size=n))
+    c = jnp.asarray(rng.normal(size=n))
+
+    def solve(b, preconditioner):
+        return solve_pressure(
+            pairs, state.kind, state.active, surface, b, jnp.zeros(n), 1e-12, 0.0,
+            5000, None, preconditioner,
+        )  # fmt: skip
+
+    p, info = solve(b0, mg)
+    _, info_jacobi = solve(b0, None)
+    dense = np.linalg.solve(a, np.where(np.asarray(in_system), np.asarray(b0), 0.0))
+    np.testing.assert_allclose(np.asarray(p), dense, rtol=1e-8, atol=1e-10)
+    assert bool(info.converged)
+    assert int(info.iterations) < 0.6 * int(info_jacobi.iterations)
+
+    def loss(scale):
+        return jnp.vdot(c, solve(scale * b0, mg)[0])
+
+    g = jax.grad(loss)(1.3)
+    fd = (loss(1.3 + 1e-5) - loss(1.3 - 1e-5)) / 2e-5
+    np.testing.assert_allclose(g, fd, rtol=1e-7)
+
+    scales = jnp.asarray([0.5, 2.0])
+    batched = jax.vmap(lambda s: solve(s * b0, mg)[0])(scales)
+    for s, row in zip(scales, batched):
+        np.testing.assert_allclose(row, solve(s * b0, mg)[0], rtol=1e-9, atol=1e-12)
+
+
+def test_multigrid_settings_are_checked():
+    from jaxmps.fluid import Multigrid
+
+    with pytest.raises(ValueError, match="Multigrid.omega"):
+        Multigrid(omega=1.5)
+    with pytest.raises(ValueError, match="Multigrid.coarsest_cells"):
+        Multigrid(coarsest_cells=0)
+
+
+def test_scene_setting_picks_the_preconditioner():
+    from jaxmps.fluid import Jacobi, Multigrid
+
+    default = jaxmps.scenes.hydrostatic(spacing=0.02).scene.solver.preconditioner
+    jacobi = jaxmps.scenes.hydrostatic(spacing=0.02, preconditioner="jacobi")
+    assert isinstance(default, Multigrid)
+    assert isinstance(jacobi.scene.solver.preconditioner, Jacobi)
+    high = jaxmps.scenes.hydrostatic(
+        spacing=0.02, scheme="high_accuracy", preconditioner="jacobi"
+    )
+    assert isinstance(high.scene.solver.preconditioner, Jacobi)

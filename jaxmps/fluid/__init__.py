@@ -16,8 +16,13 @@ from ._open import Inflow as Inflow
 from ._open import Outflow as Outflow
 from ._open import apply_inflow as apply_inflow
 from ._open import apply_outflow as apply_outflow
+from ._precondition import AbstractPreconditioner as AbstractPreconditioner
+from ._precondition import Jacobi as Jacobi
+from ._precondition import Multigrid as Multigrid
+from ._precondition import PressureSystem as PressureSystem
 from ._predict import collide as collide
 from ._predict import predict_velocity as predict_velocity
+from ._pressure import assemble_pressure_system as assemble_pressure_system
 from ._pressure import pressure_system as pressure_system
 from ._pressure import solve_pressure as solve_pressure
 from ._semi_implicit import AbstractSolver as AbstractSolver

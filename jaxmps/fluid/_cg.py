@@ -1,4 +1,4 @@
-"""Jacobi-preconditioned conjugate gradients with implicit differentiation."""
+"""Preconditioned conjugate gradients with implicit differentiation."""
 
 from collections.abc import Callable
 
@@ -16,12 +16,12 @@ class SolveInfo(eqx.Module):
     converged: Bool[Array, ""]
 
 
-def _pcg(matvec, b, x0, inv_diag, rtol, atol, max_iterations):
+def _pcg(matvec, b, x0, precondition, rtol, atol, max_iterations):
     """Plain PCG loop; never differentiated (it runs inside custom_linear_solve)."""
     b_norm = jnp.linalg.norm(b)
     tol = jnp.maximum(rtol * b_norm, atol)
     r0 = b - matvec(x0)
-    z0 = inv_diag * r0
+    z0 = precondition(r0)
     init = (x0, r0, z0, jnp.vdot(r0, z0), jnp.asarray(0, jnp.int32))
 
     def cond(carry):
@@ -35,7 +35,7 @@ def _pcg(matvec, b, x0, inv_diag, rtol, atol, max_iterations):
         alpha = jnp.where(p_ap > 0, rz / jnp.where(p_ap > 0, p_ap, 1.0), 0.0)
         x = x + alpha * p
         r = r - alpha * ap
-        z = inv_diag * r
+        z = precondition(r)
         rz_new = jnp.vdot(r, z)
         beta = jnp.where(rz > 0, rz_new / jnp.where(rz > 0, rz, 1.0), 0.0)
         return x, r, z + beta * p, rz_new, it + 1
@@ -50,7 +50,8 @@ def solve_spd(
     matvec: Callable[[Float[Array, " n"]], Float[Array, " n"]],
     b: Float[Array, " n"],
     x0: Float[Array, " n"],
-    inv_diag: Float[Array, " n"],
+    precondition: Callable[[Float[Array, " n"]], Float[Array, " n"]]
+    | Float[Array, " n"],
     rtol: float,
     atol: float,
     max_iterations: int,
@@ -64,18 +65,23 @@ def solve_spd(
     cotangents cannot underflow the float32 dot products (jax-ml/jax#40254); `rtol`
     is therefore relative to ||b|| and `atol` applies to the normalised system.
 
-    `x0` (warm start) and `inv_diag` (Jacobi preconditioner) only steer the iteration
-    and carry no gradient.
+    `x0` (warm start) and `precondition` (z = M^-1 r for a symmetric positive
+    definite M, or an array of inverse diagonal entries for Jacobi) only steer the
+    iteration and carry no gradient: build M from gradient-stopped values.
     """
     x0 = jax.lax.stop_gradient(x0)
-    inv_diag = jax.lax.stop_gradient(inv_diag)
+    if not callable(precondition):
+        inverse = jax.lax.stop_gradient(precondition)
+        precondition = lambda r: inverse * r  # noqa: E731
 
     def normalised(guess):
         def solve(mv, rhs):
             scale = jnp.max(jnp.abs(rhs))
             safe = jnp.where(scale > 0, scale, 1.0)
             start = guess / safe if guess is not None else jnp.zeros_like(rhs)
-            x, info = _pcg(mv, rhs / safe, start, inv_diag, rtol, atol, max_iterations)
+            x, info = _pcg(
+                mv, rhs / safe, start, precondition, rtol, atol, max_iterations
+            )
             return x * safe, info
 
         return solve

@@ -1,5 +1,8 @@
 """Pressure Poisson equation of the semi-implicit step (seed 000 eq. 2.2-14/15)."""
 
+from collections.abc import Callable
+
+import jax
 import jax.numpy as jnp
 from jaxtyping import Array, Bool, Float
 
@@ -7,16 +10,17 @@ from .._numerics import take_rows
 from .._types import PRESSURE_KINDS, is_kind
 from ..operators import Pairs
 from ._cg import SolveInfo, solve_spd
+from ._precondition import Apply, PressureSystem
 
 
-def pressure_system(
+def assemble_pressure_system(
     pairs: Pairs,
     kind,
     active: Bool[Array, " n"],
     surface: Bool[Array, " n"],
     coefficient: Float[Array, "n k"] | None = None,
-):
-    """The PPE operator A (symmetric positive definite), its diagonal and row mask.
+) -> PressureSystem:
+    """The PPE operator A (symmetric positive definite) in pair form.
 
     For a particle i in the system S (active fluid/wall/body, not on the surface):
         (A p)_i = sum_j c_ij (p_i - [j in S] p_j),
@@ -31,17 +35,21 @@ def pressure_system(
     c = pairs.weight if coefficient is None else coefficient
     coupling = jnp.where(pairs.valid & take_rows(carries, pairs.index), c, 0.0)
     diag = jnp.sum(coupling, axis=1)
-    neighbour_in_system = take_rows(in_system, pairs.index)
-    off = jnp.where(neighbour_in_system, coupling, 0.0)
+    off = jnp.where(take_rows(in_system, pairs.index), coupling, 0.0)
+    return PressureSystem(index=pairs.index, off=off, diag=diag, in_system=in_system)
 
-    def matvec(p):
-        row = diag * p - jnp.sum(off * take_rows(p, pairs.index), axis=1)
-        return jnp.where(in_system, row, p)
 
-    # A row in S with no pressure-carrying neighbour cannot occur for beta < 1 (its
-    # number density would flag it as surface); guard the preconditioner anyway.
-    safe_diag = jnp.where(in_system & (diag > 0), diag, 1.0)
-    return matvec, safe_diag, in_system
+def pressure_system(
+    pairs: Pairs,
+    kind,
+    active: Bool[Array, " n"],
+    surface: Bool[Array, " n"],
+    coefficient: Float[Array, "n k"] | None = None,
+):
+    """(matvec, diagonal, row mask) of `assemble_pressure_system`; the diagonal is
+    1 on rows outside the system."""
+    system = assemble_pressure_system(pairs, kind, active, surface, coefficient)
+    return system.matvec, 1.0 / system.inverse_diagonal, system.in_system
 
 
 def solve_pressure(
@@ -55,9 +63,20 @@ def solve_pressure(
     atol: float,
     max_iterations: int,
     coefficient: Float[Array, "n k"] | None = None,
+    preconditioner: Callable[[PressureSystem], Apply] | None = None,
 ) -> tuple[Float[Array, " n"], SolveInfo]:
-    """Solve A p = source on the system rows (source is ignored elsewhere)."""
-    matvec, diag, in_system = pressure_system(pairs, kind, active, surface, coefficient)
-    b = jnp.where(in_system, source, 0.0)
-    x0 = jnp.where(in_system, guess, 0.0)
-    return solve_spd(matvec, b, x0, 1.0 / diag, rtol, atol, max_iterations)
+    """Solve A p = source on the system rows (source is ignored elsewhere).
+
+    `preconditioner` builds M^-1 from the (gradient-stopped) system, e.g.
+    `functools.partial(Multigrid(), scene, position)`; None is Jacobi."""
+    system = assemble_pressure_system(pairs, kind, active, surface, coefficient)
+    system = jax.lax.optimization_barrier(system)
+    b = jnp.where(system.in_system, source, 0.0)
+    x0 = jnp.where(system.in_system, guess, 0.0)
+    stopped = jax.lax.stop_gradient(system)
+    if preconditioner is None:
+        inverse = stopped.inverse_diagonal
+        apply = lambda r: inverse * r  # noqa: E731
+    else:
+        apply = preconditioner(stopped)
+    return solve_spd(system.matvec, b, x0, apply, rtol, atol, max_iterations)

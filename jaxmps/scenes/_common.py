@@ -8,7 +8,7 @@ import numpy as np
 from .. import geometry, schemes
 from .._build import make_params, make_scene, make_state
 from .._types import Kind
-from ..fluid import Explicit, SemiImplicit
+from ..fluid import Explicit, Jacobi, Multigrid, SemiImplicit
 from ..operators import EMPSWeight
 
 # Overrides every scene accepts, with their defaults (None: scene-specific).
@@ -23,6 +23,7 @@ COMMON = {
     "sound_speed": 10.0,
     "rtol": None,
     "max_iterations": 2000,
+    "preconditioner": "multigrid",
     "max_neighbours": None,
     "candidate_capacity": None,
     "courant": 0.2,
@@ -31,6 +32,7 @@ COMMON = {
 
 SOLVERS = ("semi_implicit", "explicit")
 SCHEMES = ("standard", "high_accuracy")
+PRECONDITIONERS = {"multigrid": Multigrid, "jacobi": Jacobi}
 
 
 def _renamed(overrides: dict[str, Any]) -> dict[str, Any]:
@@ -70,6 +72,11 @@ def resolve(name: str, specific: dict[str, Any], overrides: dict[str, Any]) -> d
     if config["scheme"] not in SCHEMES:
         raise ValueError(
             f"scheme={config['scheme']!r} is not available; valid: {SCHEMES}."
+        )
+    if config["preconditioner"] not in PRECONDITIONERS:
+        raise ValueError(
+            f"preconditioner={config['preconditioner']!r} is not available; valid: "
+            f"{tuple(PRECONDITIONERS)}."
         )
     if config["scheme"] != "standard" and config["solver"] != "semi_implicit":
         raise ValueError(
@@ -133,7 +140,9 @@ def discretisation(config: dict) -> dict:
     if config["solver"] == "explicit":
         return dict(r_e=2.1, weight=EMPSWeight(), solver=Explicit())
     solver = SemiImplicit(
-        rtol=config["rtol"], max_iterations=int(config["max_iterations"])
+        rtol=config["rtol"],
+        max_iterations=int(config["max_iterations"]),
+        preconditioner=PRECONDITIONERS[config["preconditioner"]](),
     )
     if config["scheme"] == "high_accuracy":
         return schemes.high_accuracy(solver)
