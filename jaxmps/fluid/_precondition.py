@@ -166,11 +166,12 @@ class Multigrid(AbstractPreconditioner):
     The particles of the system are aggregated into cubic cells of edge r_e (so a
     particle's neighbours lie in the 3^d cells around its own); the coarse matrix is
     the Galerkin product P^T A P with piecewise-constant P, assembled from the pair
-    coefficients in one scatter. Coarser levels halve the cell grid (every axis
-    longer than 2) with the same Galerkin product, down to at most `coarsest_cells`
-    cells, which are solved by a dense Cholesky factorisation. Every level smooths
-    with one damped-Jacobi sweep before and one after its coarse correction, so
-    the V-cycle is symmetric; it is positive definite while `correction` < 2.
+    coefficients (summed per particle by neighbour-cell offset, then by cell).
+    Coarser levels halve the cell grid (every axis longer than 2) with the same
+    Galerkin product, down to at most `coarsest_cells` cells, which are solved by
+    a dense Cholesky factorisation. Every level smooths with one damped-Jacobi
+    sweep before and one after its coarse correction, so the V-cycle is
+    symmetric; it is positive definite while `correction` < 2.
 
     All of it is built once per pressure solve, from the matrix of that solve, and
     carries no gradient (the implicit adjoint solve uses it as it is).
@@ -191,7 +192,6 @@ class Multigrid(AbstractPreconditioner):
     omega: float = 2.0 / 3.0
     correction: float = 1.5
     coarsest_cells: int = 64
-    smooth_particles: bool = True
 
     def __check_init__(self):
         if not 0 < self.omega <= 1:
@@ -265,13 +265,6 @@ class Multigrid(AbstractPreconditioner):
 
         inverse_0 = jnp.where(in_system, system.inverse_diagonal, 0.0)
 
-        def additive(r):
-            r_s = jnp.where(in_system, r, 0.0)
-            coarse_r = jnp.zeros(n1, r.dtype).at[flat].add(r_s)
-            e = cycle(0, coarse_r.reshape(shape)).reshape(-1)
-            x = omega * inverse_0 * r_s + alpha * jnp.where(in_system, e[flat], 0.0)
-            return jnp.where(in_system, x, r)
-
         def apply(r):
             r_s = jnp.where(in_system, r, 0.0)
             x = omega * inverse_0 * r_s
@@ -283,4 +276,4 @@ class Multigrid(AbstractPreconditioner):
             # Rows outside the system are the identity.
             return jnp.where(in_system, x, r)
 
-        return apply if self.smooth_particles else additive
+        return apply

@@ -1,5 +1,6 @@
 """Pressure Poisson equation of the semi-implicit step (seed 000 eq. 2.2-14/15)."""
 
+import functools
 from collections.abc import Callable
 
 import jax
@@ -10,7 +11,7 @@ from .._numerics import take_rows
 from .._types import PRESSURE_KINDS, is_kind
 from ..operators import Pairs
 from ._cg import SolveInfo, solve_spd
-from ._precondition import Apply, PressureSystem
+from ._precondition import Apply, Jacobi, PressureSystem
 
 
 def assemble_pressure_system(
@@ -70,13 +71,9 @@ def solve_pressure(
     `preconditioner` builds M^-1 from the (gradient-stopped) system, e.g.
     `functools.partial(Multigrid(), scene, position)`; None is Jacobi."""
     system = assemble_pressure_system(pairs, kind, active, surface, coefficient)
-    system = jax.lax.optimization_barrier(system)
     b = jnp.where(system.in_system, source, 0.0)
     x0 = jnp.where(system.in_system, guess, 0.0)
-    stopped = jax.lax.stop_gradient(system)
     if preconditioner is None:
-        inverse = stopped.inverse_diagonal
-        apply = lambda r: inverse * r  # noqa: E731
-    else:
-        apply = preconditioner(stopped)
+        preconditioner = functools.partial(Jacobi(), None, None)
+    apply = preconditioner(jax.lax.stop_gradient(system))
     return solve_spd(system.matvec, b, x0, apply, rtol, atol, max_iterations)
