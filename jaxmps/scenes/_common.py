@@ -31,7 +31,7 @@ COMMON = {
 }
 
 SOLVERS = ("semi_implicit", "explicit")
-SCHEMES = ("standard", "high_accuracy")
+SCHEMES = ("standard", "high_accuracy", "standard_mps")
 PRECONDITIONERS = {"multigrid": Multigrid, "jacobi": Jacobi}
 
 
@@ -146,6 +146,8 @@ def discretisation(config: dict) -> dict:
     )
     if config["scheme"] == "high_accuracy":
         return schemes.high_accuracy(solver)
+    if config["scheme"] == "standard_mps":
+        return schemes.standard_mps(solver)
     return schemes.standard(solver)
 
 
