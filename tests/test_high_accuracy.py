@@ -290,11 +290,13 @@ def test_sloped_tank_geometry_and_run_up_probe():
     assert int(tr.state.active.sum()) == int(case.state.active.sum())
 
 
-def _bottom_pressure_late(scheme):
+def _bottom_pressure_late(scheme, **overrides):
     """Bottom probe of the 0.2 m still-water tank (l0 = 1 cm) over 0.5-1 s, and its
     analytic value rho g (H - l0/2 - y_p), y_p the mean initial height of the
     probed particles (as in benchmarks/accuracy_vs_cost.py)."""
-    case = jaxmps.scenes.hydrostatic(spacing=0.01, width=0.2, depth=0.2, scheme=scheme)
+    case = jaxmps.scenes.hydrostatic(
+        spacing=0.01, width=0.2, depth=0.2, scheme=scheme, **overrides
+    )
     probe = {p.name: p for p in case.probes}["pressure_bottom"]
     obs = jaxmps.scenes.observe_probes((probe,))
     n = int(1.0 / float(case.params.dt)) // 10 * 10
@@ -307,11 +309,12 @@ def test_hydrostatic_high_accuracy_within_1_percent_and_quieter_than_standard_mp
     """Full high-accuracy scheme in still water: mean bottom pressure within 1 % of
     theory (measured 0.46 %), and its noise (standard deviation over time at the
     probe) at least 3x below that of seed 001's standard MPS (measured 3.6 % vs
-    129 % of rho g H, 35x). It is *not* below the noise of our default `standard`
+    129-160 % of rho g H). It is *not* below the noise of our default `standard`
     scheme (1.4 %), which already carries two of the corrections (the
     Tanaka-Masunaga source and the corrected gradient): see
     benchmarks/results/scheme_cost_cpu.md."""
     p, reference = _bottom_pressure_late("high_accuracy")
     assert p.mean() == pytest.approx(reference, rel=0.01)
-    p_mps, _ = _bottom_pressure_late("standard_mps")
+    # Its spray leaves the default box (1.25 x the depth) within the second.
+    p_mps, _ = _bottom_pressure_late("standard_mps", domain_margin=0.3)
     assert 3 * p.std() < p_mps.std()
