@@ -6,7 +6,7 @@ import jax
 import jax.numpy as jnp
 from jaxtyping import Array, Bool, Float
 
-from .._numerics import safe_norm, take_rows
+from .._numerics import pair_sum, safe_norm, take_rows
 from .._types import Kind, is_kind
 from . import _rotation as rot
 from ._friction import Contact, Coulomb
@@ -109,11 +109,10 @@ def body_pressure_gradient(scene, state, pairs, pressure, carries):
     coef = jnp.where(
         external & member[:, None], p_sum * pairs.weight / pairs.distance**2, 0.0
     )
-    terms = coef[..., None] * pairs.offset
     scale = scene.dim / scene.n0
     contact = contact_partners(state, pairs)
-    gradient = scale * jnp.sum(terms, axis=1)
-    contact_part = scale * jnp.sum(jnp.where(contact[..., None], terms, 0.0), axis=1)
+    gradient = scale * pair_sum(coef, pairs.offset)
+    contact_part = scale * pair_sum(jnp.where(contact, coef, 0.0), pairs.offset)
     return gradient, contact_part
 
 

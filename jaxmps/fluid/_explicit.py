@@ -4,7 +4,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .._numerics import take_rows
+from .._numerics import pair_sum, take_rows
 from .._result import StepInfo
 from .._state import State
 from .._types import PRESSURE_KINDS, is_kind
@@ -103,8 +103,8 @@ class Explicit(AbstractSolver):
         # carry no pressure and are left out of the gradient.
         w_grad = jnp.where(take_rows(carries, pairs.index), w_grad, 0.0)
         p_sum = take_rows(pressure, pairs.index) + pressure[:, None]
-        terms = (p_sum * w_grad / pairs.distance**2)[..., None] * pairs.offset
-        grad_p = (scene.dim / n0_grad) * jnp.sum(terms, axis=1)
+        coefficient = p_sum * w_grad / pairs.distance**2
+        grad_p = (scene.dim / n0_grad) * pair_sum(coefficient, pairs.offset)
 
         rho = jnp.reshape(particle_density(params, state), (-1, 1))
         u_new = jnp.where(mobile[:, None], u_star - (dt / rho) * grad_p, u_star)
@@ -125,8 +125,8 @@ class Explicit(AbstractSolver):
         )
         if state.rigid is not None:
             partner = contact_partners(state, pairs)
-            contact_gradient = (scene.dim / n0_grad) * jnp.sum(
-                jnp.where(partner[..., None], terms, 0.0), axis=1
+            contact_gradient = (scene.dim / n0_grad) * pair_sum(
+                jnp.where(partner, coefficient, 0.0), pairs.offset
             )
             new_state = with_contact(scene, new_state, pairs, contact_gradient)
         info = StepInfo(

@@ -4,7 +4,7 @@ import jax.numpy as jnp
 from jaxtyping import Array, Bool, Float
 
 from .. import neighbours
-from .._numerics import take_rows
+from .._numerics import last_axis_dot, pair_sum, take_rows
 from .._params import Params
 from .._types import MOBILE_KINDS, is_kind
 from ..bodies import particle_density, without_internal_pairs
@@ -76,14 +76,15 @@ def collide(
     # (momentum conserving); a fixed partner (wall, dummy) takes none of it.
     """
     mobile = jnp.logical_and(active, is_kind(kind, MOBILE_KINDS))
-    e = pairs.offset / pairs.distance[..., None]
+    inverse_r = 1.0 / pairs.distance
     u_j = take_rows(velocity, pairs.index)
-    v_n = jnp.sum((velocity[:, None, :] - u_j) * e, axis=-1)  # > 0: approaching
+    # > 0: approaching
+    v_n = last_axis_dot(velocity[:, None, :] - u_j, pairs.offset) * inverse_r
     close = pairs.valid & (pairs.distance < distance) & (v_n > 0) & mobile[:, None]
     partner_mobile = take_rows(mobile, pairs.index)
     share = jnp.where(partner_mobile, 0.5, 1.0)
-    impulse = jnp.where(close, (1.0 + restitution) * share * v_n, 0.0)
-    return velocity - jnp.sum(impulse[..., None] * e, axis=1)
+    impulse = jnp.where(close, (1.0 + restitution) * share * v_n * inverse_r, 0.0)
+    return velocity - pair_sum(impulse, pairs.offset)
 
 
 def is_mobile(kind, active) -> Bool[Array, " n"]:

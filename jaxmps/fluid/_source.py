@@ -6,7 +6,7 @@ import equinox as eqx
 import jax.numpy as jnp
 from jaxtyping import Array, Float
 
-from .._numerics import take_rows
+from .._numerics import last_axis_dot, take_rows
 from ..operators import Pairs, lattice_sum
 
 
@@ -76,7 +76,7 @@ class MixedSource(AbstractSource):
     def __call__(self, scene, inputs):
         pairs, u = inputs.pairs, inputs.u_star
         du = take_rows(u, pairs.index) - u[:, None, :]
-        radial = jnp.sum(du * pairs.offset, axis=-1) / pairs.distance**2
+        radial = last_axis_dot(du, pairs.offset) / pairs.distance**2
         divergence = (scene.dim / scene.n0) * jnp.sum(radial * pairs.weight, axis=1)
         return inputs.density / inputs.dt * divergence + self.gamma * _density_term(
             inputs, inputs.n_star, scene.n0
@@ -89,7 +89,7 @@ def density_rate(scene, pairs: Pairs, velocity: Float[Array, "n d"]):
     safe_r = jnp.where(pairs.valid, pairs.distance, scene.r_e)
     slope = jnp.where(pairs.valid, scene.weight.derivative(safe_r, scene.r_e), 0.0)
     du = take_rows(velocity, pairs.index) - velocity[:, None, :]
-    closing = jnp.sum(du * pairs.offset, axis=-1) / pairs.distance
+    closing = last_axis_dot(du, pairs.offset) / pairs.distance
     return jnp.sum(slope * closing, axis=1)
 
 

@@ -4,7 +4,7 @@ import equinox as eqx
 import jax.numpy as jnp
 from jaxtyping import Array, Bool, Float
 
-from .._numerics import safe_norm, take_rows
+from .._numerics import last_axis_dot, pair_sum, safe_norm, take_rows
 from .._types import Kind
 from ..operators import Pairs
 
@@ -59,8 +59,8 @@ class DynamicStabilisation(eqx.Module):
         r_k = safe_norm(offset_k, listed, placeholder=1.0)
         e = jnp.where(listed[..., None], offset_k / r_k[..., None], 0.0)
         offset = take_rows(predicted, index) - predicted[:, None, :]
-        parallel = jnp.sum(offset * e, axis=-1)
-        r2 = jnp.sum(offset**2, axis=-1)
+        parallel = last_axis_dot(offset, e)
+        r2 = last_axis_dot(offset, offset)
         contact = self.alpha * scene.spacing
         close = listed & (r2 < contact**2) & fluid[:, None]
         perp2 = jnp.maximum(r2 - parallel**2, 0.0)
@@ -69,4 +69,4 @@ class DynamicStabilisation(eqx.Module):
         pi = jnp.where(close, share * gap / dt**2, 0.0)
         if self.weighted:
             pi = pi * pairs.weight / scene.n0
-        return -jnp.sum(pi[..., None] * e, axis=1)
+        return -pair_sum(pi, e)

@@ -6,7 +6,7 @@ import equinox as eqx
 import jax.numpy as jnp
 from jaxtyping import Array, Bool, Float
 
-from .._numerics import take_rows
+from .._numerics import pair_sum, small_determinant, small_inverse, take_rows
 from ._pairs import Pairs
 
 
@@ -35,13 +35,12 @@ def _select(w, select):
     return w if select is None else jnp.where(select, w, 0.0)
 
 
-def _unit_weighted(pairs: Pairs, field, include):
-    """(phi_j - phi_i) / |r_ij| * w_ij * e_ij summed over included j, and e_ij."""
+def _masked(pairs: Pairs, field, include):
+    """Weights w_ij of the included pairs (0 elsewhere) and phi_j - phi_i."""
     mask = jnp.logical_and(pairs.valid, include)
     w = jnp.where(mask, pairs.weight, 0.0)
-    e = pairs.offset / pairs.distance[..., None]
     diff = take_rows(field, pairs.index) - field[:, None]
-    return w, e, diff
+    return w, diff
 
 
 class StandardGradient(AbstractGradient):
@@ -51,10 +50,9 @@ class StandardGradient(AbstractGradient):
     """
 
     def __call__(self, pairs, field, n0, dim, include, select=None):
-        w, e, diff = _unit_weighted(pairs, field, include)
+        w, diff = _masked(pairs, field, include)
         w = _select(w, select)
-        terms = (diff * w / pairs.distance)[..., None] * e
-        return (dim / n0) * jnp.sum(terms, axis=1)
+        return (dim / n0) * pair_sum(diff * w / pairs.distance**2, pairs.offset)
 
 
 class MinimumPressureGradient(AbstractGradient):
@@ -72,9 +70,8 @@ class MinimumPressureGradient(AbstractGradient):
         phi_min = jnp.min(jnp.where(mask, phi_j, jnp.inf), axis=1)
         phi_hat = jnp.minimum(field, phi_min)
         w = _select(jnp.where(mask, pairs.weight, 0.0), select)
-        e = pairs.offset / pairs.distance[..., None]
-        terms = ((phi_j - phi_hat[:, None]) * w / pairs.distance)[..., None] * e
-        return (dim / n0) * jnp.sum(terms, axis=1)
+        coefficient = (phi_j - phi_hat[:, None]) * w / pairs.distance**2
+        return (dim / n0) * pair_sum(coefficient, pairs.offset)
 
 
 class CorrectedGradient(AbstractGradient):
@@ -108,18 +105,40 @@ class CorrectedGradient(AbstractGradient):
     minimum_shift: bool = False
 
     def __call__(self, pairs, field, n0, dim, include, select=None):
-        w, e, diff = _unit_weighted(pairs, field, include)
+        w, diff = _masked(pairs, field, include)
         if self.minimum_shift:
             mask = jnp.logical_and(pairs.valid, include)
             phi_j = take_rows(field, pairs.index)
             phi_min = jnp.min(jnp.where(mask, phi_j, jnp.inf), axis=1)
             diff = phi_j - jnp.minimum(field, phi_min)[:, None]
-        moment = jnp.einsum("nk,nka,nkb->nab", w, e, e) / n0
-        det = jnp.linalg.det(moment)
+        # M = 1/n0 sum_j w_ij e_ij (x) e_ij, one symmetric entry at a time.
+        w_r2 = w / pairs.distance**2 / n0
+        o = pairs.offset
+        entries = {
+            (a, b): jnp.sum(w_r2 * o[..., a] * o[..., b], axis=1)
+            for a in range(dim)
+            for b in range(a, dim)
+        }
+        moment = jnp.stack(
+            [
+                jnp.stack([entries[min(a, b), max(a, b)] for b in range(dim)], -1)
+                for a in range(dim)
+            ],
+            -2,
+        )
+        det = small_determinant(moment)
         ok = det > self.min_det * float(dim) ** (-dim)
         isotropic = jnp.eye(dim, dtype=moment.dtype) / dim
         safe_moment = jnp.where(ok[:, None, None], moment, isotropic)
-        correction = jnp.linalg.inv(safe_moment)
+        correction = small_inverse(
+            safe_moment, jnp.where(ok, det, float(dim) ** (-dim))
+        )
         w = _select(w, select)
-        rhs = jnp.sum((diff * w / pairs.distance)[..., None] * e, axis=1) / n0
-        return jnp.einsum("nab,nb->na", correction, rhs)
+        rhs = pair_sum(diff * w / pairs.distance**2, pairs.offset) / n0
+        return jnp.stack(
+            [
+                sum(correction[:, a, b] * rhs[:, b] for b in range(dim))
+                for a in range(dim)
+            ],
+            -1,
+        )
