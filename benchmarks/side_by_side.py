@@ -716,9 +716,11 @@ def main(argv=None):
         rows = old["runs"]
         kept = "; its rows are from an earlier run, kept by --append"
         if not peer_python and old.get("peer", {}).get("python"):
-            saved_peer = {**old["peer"], "status": old["peer"]["status"] + kept}
+            status = old["peer"]["status"].split(kept)[0]
+            saved_peer = {**old["peer"], "status": status + kept}
         if not pysph["python"] and old.get("pysph", {}).get("python"):
-            saved_pysph = {**old["pysph"], "status": old["pysph"]["status"] + kept}
+            status = old["pysph"]["status"].split(kept)[0]
+            saved_pysph = {**old["pysph"], "status": status + kept}
         codes = {("jaxmps", s) for s in args.solvers}
         if peer_python:
             codes.add(("jax-sph", "SPH"))

@@ -22,25 +22,29 @@ def _pcg(matvec, b, x0, precondition, rtol, atol, max_iterations):
     tol = jnp.maximum(rtol * b_norm, atol)
     r0 = b - matvec(x0)
     z0 = precondition(r0)
-    init = (x0, r0, z0, jnp.vdot(r0, z0), jnp.asarray(0, jnp.int32))
+    init = (x0, r0, z0, z0, jnp.vdot(r0, z0), jnp.asarray(0, jnp.int32))
 
     def cond(carry):
-        _, r, _, _, it = carry
+        _, r, _, _, _, it = carry
         return (jnp.linalg.norm(r) > tol) & (it < max_iterations)
 
     def body(carry):
-        x, r, p, rz, it = carry
+        x, r, z, p, rz, it = carry
         ap = matvec(p)
         p_ap = jnp.vdot(p, ap)
         alpha = jnp.where(p_ap > 0, rz / jnp.where(p_ap > 0, p_ap, 1.0), 0.0)
         x = x + alpha * p
         r = r - alpha * ap
-        z = precondition(r)
-        rz_new = jnp.vdot(r, z)
-        beta = jnp.where(rz > 0, rz_new / jnp.where(rz > 0, rz, 1.0), 0.0)
-        return x, r, z + beta * p, rz_new, it + 1
+        z_new = precondition(r)
+        rz_new = jnp.vdot(r, z_new)
+        # Polak-Ribiere: equal to Fletcher-Reeves' rz_new / rz for an exactly
+        # symmetric M, and robust when M is slightly not (a single-precision
+        # preconditioner in a float64 solve: flexible CG, Notay 2000).
+        beta = jnp.vdot(r, z_new - z) / jnp.where(rz > 0, rz, 1.0)
+        beta = jnp.where(rz > 0, jnp.maximum(beta, 0.0), 0.0)
+        return x, r, z_new, z_new + beta * p, rz_new, it + 1
 
-    x, r, _, _, it = jax.lax.while_loop(cond, body, init)
+    x, r, _, _, _, it = jax.lax.while_loop(cond, body, init)
     r_norm = jnp.linalg.norm(r)
     residual = r_norm / jnp.where(b_norm > 0, b_norm, 1.0)
     return x, SolveInfo(iterations=it, residual=residual, converged=r_norm <= tol)
