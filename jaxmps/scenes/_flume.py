@@ -41,7 +41,8 @@ class FluidCount(AbstractProbe):
 def flume(**overrides) -> Case:
     """2-D flume of `bed_length` fed by an inflow of depth `inflow_depth` at speed
     `discharge / inflow_depth`; water leaves over the downstream end (deleted one
-    spacing past it) or over a tail weir of `weir_height`.
+    spacing past it) or over a tail weir of `weir_height` (deleted once past its
+    downstream face).
 
     # Choice: seed 002's Ch. 4 inflow (q = 0.04 m^2/s, h_in = 4.5 cm, uniform
     # velocity) on a flat 1 m bed; its step, crest and slope are not modelled here.
@@ -68,7 +69,13 @@ def flume(**overrides) -> Case:
     h_c = (float(c["discharge"]) ** 2 / c["gravity"]) ** (1 / 3)  # critical depth
     # Level upstream of a weir ~ crest + 1.5 h_c (broad-crested weir); keep margin.
     level = weir + 2 * max(h_c, h_in) if weir > 0 else h_in
-    above = int(round((level + 4 * l0) / l0)) - rows
+    margin = c["domain_margin"]
+    # Choice: room above the water for splash (a jet off a tail weir rises ~0.3 m).
+    top = max(h_in, weir) + (max(0.3 * length, 0.4) if margin is None else margin)
+    # Choice: the wall rises to the top of the domain (a head-box wall), so that
+    # splash thrown back upstream (off a weir or a jump) cannot leave the domain
+    # over the inflow end; it falls back into the channel.
+    above = int(round(max(top, level + 4 * l0) / l0)) - rows
     ys_above = (rows + np.arange(above) + 0.5) * l0
     upstream = np.concatenate(
         [
@@ -79,7 +86,10 @@ def flume(**overrides) -> Case:
     upstream_kind = np.where(np.arange(len(upstream)) < above, Kind.WALL, Kind.DUMMY)
     # Bed under the inflow (and the travel of its dummies) and the channel.
     bed_lower = [-(layers + 1) * l0, -layers * l0]
-    bed = geometry.block(bed_lower, [length, 0.0], l0)
+    # The bed runs on under the weir: a weir standing on the bed's end would leave
+    # a gap under its bottom row through which the bottom fluid row leaks out.
+    bed_end = length + (layers * l0 if weir > 0 else 0.0)
+    bed = geometry.block(bed_lower, [bed_end, 0.0], l0)
     bed_layer = np.rint(-bed[:, 1] / l0 - 0.5).astype(int)
     bed_kind = np.where(bed_layer == 0, Kind.WALL, Kind.DUMMY)
     parts = [inflow_pts, upstream, bed]
@@ -116,13 +126,14 @@ def flume(**overrides) -> Case:
     else:
         pool = int(c["pool"])
     capacity = len(position) + pool
-    margin = c["domain_margin"]
-    # Choice: room above the water for splash (a jet off a tail weir rises ~0.3 m).
-    top = max(h_in, weir) + (max(0.3 * length, 0.4) if margin is None else margin)
     lower = np.array([-(layers + 3) * l0, -(layers + 2) * l0 - 0.2 * length])
     upper = np.array([length + (layers + 3) * l0, top])
     scene = case_scene(c, position, (lower, upper), capacity=capacity)
-    outflow_at = length + (layers * l0 if weir > 0 else 0.0) + l0
+    # Choice: behind a weir the outflow plane is the weir's downstream face: water
+    # that spills over the crest and runs down that face would otherwise fall
+    # between the face and a plane further out and leave the domain through its
+    # bottom.
+    outflow_at = length + layers * l0 if weir > 0 else length + l0
     scene = _with_boundaries(
         scene,
         Inflow(
