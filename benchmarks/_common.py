@@ -34,10 +34,30 @@ def machine_info() -> dict:
     """What ran the benchmark: platform, CPU, versions, device, dtype, git commit."""
     cpu_model = None
     try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                cpu_model = line.split(":", 1)[1].strip()
-                break
+        # The first processor's block. Virtual machines often name only the vendor
+        # line ("AMD EPYC"), so family, model and the widest vector set are kept:
+        # XLA's CPU code ran 2x apart on two hosts both called "AMD EPYC".
+        block = Path("/proc/cpuinfo").read_text().split("\n\n")[0]
+        info = dict(
+            (k.strip(), v.strip())
+            for k, _, v in (ln.partition(":") for ln in block.splitlines())
+        )
+        flags = set(info.get("flags", "").split())
+        vector = next((f for f in ("avx512f", "avx2", "avx") if f in flags), None)
+        cpu_model = (
+            ", ".join(
+                x
+                for x in (
+                    info.get("model name"),
+                    f"family {info['cpu family']} model {info['model']}"
+                    if "cpu family" in info and "model" in info
+                    else None,
+                    vector,
+                )
+                if x
+            )
+            or None
+        )
     except OSError:
         pass
     try:
