@@ -6,9 +6,12 @@ blocks and an inner one over the `save_every` steps of a block. With
 stores only the block-boundary states (n_steps / save_every of them) plus the
 residuals of the one block being re-run (save_every steps; the neighbour search is
 recomputed); with save_every ~ sqrt(n_steps) the memory grows like sqrt(n_steps).
+With `checkpoint="steps"` each step is checkpointed as well, so the block being
+re-run stores save_every states instead of save_every steps' residuals (tens of
+(particles, slots) arrays each), for one more forward evaluation of every step.
 With `checkpoint=False` the residuals of every step are stored: memory ~ n_steps.
 
-For each T in `--steps` and checkpoint in (True, False), this script measures
+For each T in `--steps` and checkpoint in (True, "steps", False), this script measures
 
 1. XLA's static buffer estimate (`Compiled.memory_analysis()`: temp, argument and
    output bytes) of the compiled *gradient* program and of the forward program; this
@@ -59,6 +62,20 @@ from _common import loadavg, machine_info
 import jaxmps
 
 HERE = Path(__file__).resolve().parent
+# `simulate(checkpoint=...)` settings measured: key in the JSON summary, label, colour.
+MODES = {
+    True: ("checkpoint", "blocks", "C0"),
+    "steps": ("checkpoint_steps", "blocks + steps", "C2"),
+    False: ("no_checkpoint", "none", "C3"),
+}
+ORDER = {mode: i for i, mode in enumerate(MODES)}
+
+
+def _same(a, b) -> bool:
+    """Equal checkpoint settings (True == 1 but True is not "steps")."""
+    return type(a) is type(b) and a == b
+
+
 GIB = 2**30
 MIB = 2**20
 
@@ -235,15 +252,15 @@ def slope(ts, values):
 
 def summarise(rows: list[dict]) -> dict:
     out = {}
-    for ckpt in (True, False):
+    for ckpt, (key, _, _) in MODES.items():
         rs = sorted(
-            (r for r in rows if r["checkpoint"] == ckpt and "error" not in r),
+            (r for r in rows if _same(r["checkpoint"], ckpt) and "error" not in r),
             key=lambda r: r["n_steps"],
         )
         ts = [r["n_steps"] for r in rs]
         g = [(r.get("gradient_xla") or {}) for r in rs]
         ran = [r for r in rs if r.get("ran")]
-        out["checkpoint" if ckpt else "no_checkpoint"] = {
+        out[key] = {
             "T": ts,
             "slope_static_total": slope(ts, [x.get("total_bytes") for x in g]),
             "slope_static_temp": slope(ts, [x.get("temp_bytes") for x in g]),
@@ -309,7 +326,7 @@ def markdown(info: dict, rows: list[dict], summary: dict, args) -> str:
         "| gradient [s] | grad/fwd | result |",
         "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
-    for r in sorted(rows, key=lambda r: (not r["checkpoint"], r["n_steps"])):
+    for r in sorted(rows, key=lambda r: (ORDER[r["checkpoint"]], r["n_steps"])):
         if "error" in r:
             lines.append(
                 f"| {r['n_steps']} | {r['checkpoint']} | {r['save_every']} "
@@ -343,8 +360,9 @@ def markdown(info: dict, rows: list[dict], summary: dict, args) -> str:
         "| peak RSS over pre-run |",
         "|---|---|---|---|---|",
     ]
-    for key, label in (("checkpoint", "True"), ("no_checkpoint", "False")):
+    for ckpt, (key, _, _) in MODES.items():
         s = summary[key]
+        label = ckpt
         lines.append(
             f"| {label} | {_s(s['slope_static_total'])} | {_s(s['slope_static_temp'])} "
             f"| {_s(s['slope_rss_over_baseline'])} (T={s['T_run']}) "
@@ -360,12 +378,14 @@ def plot(rows: list[dict], path: Path, title: str) -> None:
     import matplotlib.pyplot as plt
 
     fig, ax = plt.subplots(figsize=(6.4, 4.6))
-    for ckpt, colour in ((True, "C0"), (False, "C3")):
+    for ckpt, (_, name, colour) in MODES.items():
         rs = sorted(
-            (r for r in rows if r["checkpoint"] == ckpt and "error" not in r),
+            (r for r in rows if _same(r["checkpoint"], ckpt) and "error" not in r),
             key=lambda r: r["n_steps"],
         )
-        label = "checkpoint" if ckpt else "no checkpoint"
+        if not rs:
+            continue
+        label = f"checkpoint {name}"
         ts = [r["n_steps"] for r in rs]
         ax.loglog(
             ts,
@@ -389,7 +409,9 @@ def plot(rows: list[dict], path: Path, title: str) -> None:
         ref = [
             r
             for r in rows
-            if r["checkpoint"] and r["n_steps"] == ts[0] and "error" not in r
+            if _same(r["checkpoint"], True)
+            and r["n_steps"] == ts[0]
+            and "error" not in r
         ]
         if ref and ref[0].get("gradient_xla"):
             m0 = ref[0]["gradient_xla"]["total_bytes"] / MIB
@@ -399,7 +421,9 @@ def plot(rows: list[dict], path: Path, title: str) -> None:
         ref = [
             r
             for r in rows
-            if not r["checkpoint"] and r["n_steps"] == ts[0] and "error" not in r
+            if _same(r["checkpoint"], False)
+            and r["n_steps"] == ts[0]
+            and "error" not in r
         ]
         if ref and ref[0].get("gradient_xla"):
             m0 = ref[0]["gradient_xla"]["total_bytes"] / MIB
@@ -434,9 +458,10 @@ def main(argv=None):
     p.add_argument("--max-run-gib", type=float, default=12.0)
     p.add_argument(
         "--checkpoint",
-        choices=("both", "on", "off"),
-        default="both",
-        help="which checkpoint settings to measure",
+        choices=("all", "both", "on", "steps", "off"),
+        default="all",
+        help="which simulate(checkpoint=...) settings to measure: on = True (blocks), "
+        "steps = 'steps' (blocks and steps), off = False; both = on and off",
     )
     p.add_argument(
         "--merge",
@@ -457,7 +482,13 @@ def main(argv=None):
         Path(args.out) if args.out else HERE / "results" / f"gradient_memory_{backend}"
     )
     out.parent.mkdir(parents=True, exist_ok=True)
-    settings = {"both": (True, False), "on": (True,), "off": (False,)}[args.checkpoint]
+    settings = {
+        "all": (True, "steps", False),
+        "both": (True, False),
+        "on": (True,),
+        "steps": ("steps",),
+        "off": (False,),
+    }[args.checkpoint]
     old_rows = []
     if args.merge and Path(f"{out}.json").exists():
         old_rows = json.loads(Path(f"{out}.json").read_text())["rows"]
@@ -491,9 +522,9 @@ def main(argv=None):
                 flush=True,
             )
     info["loadavg_1min_end"] = loadavg()
-    new_keys = {(r["n_steps"], r["checkpoint"]) for r in rows}
+    new_keys = {(r["n_steps"], str(r["checkpoint"])) for r in rows}
     rows = [
-        r for r in old_rows if (r["n_steps"], r["checkpoint"]) not in new_keys
+        r for r in old_rows if (r["n_steps"], str(r["checkpoint"])) not in new_keys
     ] + rows
     summary = summarise(rows)
     Path(f"{out}.json").write_text(

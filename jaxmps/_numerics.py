@@ -1,5 +1,6 @@
 """Numerical helpers with safe gradients (the "double where"). No physics here."""
 
+import jax
 import jax.numpy as jnp
 from jaxtyping import Array, Bool, Float
 
@@ -71,11 +72,18 @@ def small_inverse(
 # They also avoid a dot_general, which some GPUs would round to TF32 in float32.
 
 
+# Choice: `jax.checkpoint` on the per-component sums: without it the backward pass
+# stores each component slice of their (n, k, d) inputs next to the inputs
+# themselves; with it the slices and products are recomputed. The forward program
+# is unchanged; the residuals of a step fall 24.5 -> 20.7 MiB (2898 particles,
+# float32) at the same gradient time (benchmarks/README.md, gradient_memory).
+@jax.checkpoint
 def last_axis_dot(a: Float[Array, "*batch d"], b: Float[Array, "*batch d"]):
     """sum_a a[..., a] b[..., a], one component at a time."""
     return sum(a[..., i] * b[..., i] for i in range(a.shape[-1]))
 
 
+@jax.checkpoint
 def pair_sum(
     coefficient: Float[Array, "n k"], vector: Float[Array, "n k d"]
 ) -> Float[Array, "n d"]:

@@ -2,7 +2,7 @@
 
 import inspect
 from collections.abc import Callable
-from typing import Any
+from typing import Any, Literal
 
 import equinox as eqx
 import jax
@@ -79,7 +79,7 @@ def simulate(
     observe: Callable[[Scene, State], PyTree] = frame,
     *,
     throw: bool = True,
-    checkpoint: bool = True,
+    checkpoint: bool | Literal["steps"] = True,
 ) -> Trajectory:
     """Run `n_steps` steps, observing the state every `save_every` steps.
 
@@ -87,7 +87,10 @@ def simulate(
     `save_every` steps. With `checkpoint=True` the outer body is wrapped in
     `jax.checkpoint`, so reverse-mode memory grows like (number of saves + save_every)
     instead of n_steps; choose save_every ~ sqrt(n_steps) for the least memory. The
-    neighbour search is recomputed in the backward pass.
+    neighbour search is recomputed in the backward pass. With `checkpoint="steps"`
+    each step is checkpointed as well: the block being re-run then stores states,
+    not the residuals of its steps (tens of arrays of shape (particles, slots) per
+    step), for one more forward evaluation of each step in the backward pass.
 
     Args:
         scene, params, state: the simulation (see `make_scene`, `make_params`,
@@ -102,7 +105,9 @@ def simulate(
             Errors are only reliably raised on CPU; on GPU they may only be printed.
             Under `vmap`, an error is raised if any batch member fails: prefer
             `throw=False` and inspect `Trajectory.result`.
-        checkpoint: rematerialise each save block in the backward pass.
+        checkpoint: rematerialise each save block in the backward pass (True), also
+            each step ("steps": least memory, slower gradient), or nothing (False:
+            most memory, memory ~ n_steps).
 
     Returns:
         A `Trajectory`.
@@ -116,6 +121,7 @@ def simulate(
     # they are tracers and only the run-time result codes apply.
     check_compatible(scene, params, state)
     _check_steps(n_steps, save_every)
+    _check_checkpoint(checkpoint)
     return _simulate(
         scene,
         params,
@@ -136,6 +142,13 @@ def _check_steps(n_steps: int, save_every: int | None) -> None:
         )
 
 
+def _check_checkpoint(checkpoint) -> None:
+    if checkpoint not in (True, False, "steps"):
+        raise ValueError(
+            f"checkpoint must be True, False or 'steps', got {checkpoint!r}."
+        )
+
+
 def _lower(*args, **kwargs):
     """`simulate.lower(...)`: the same checks, then the lowered rollout, so that
     benchmarks can time compilation (`.compile()`) apart from running. Call the
@@ -145,6 +158,7 @@ def _lower(*args, **kwargs):
     a = bound.arguments
     check_compatible(a["scene"], a["params"], a["state"])
     _check_steps(a["n_steps"], a["save_every"])
+    _check_checkpoint(a["checkpoint"])
     return _simulate.lower(*args, **kwargs)
 
 
@@ -160,6 +174,9 @@ def _simulate(
     def one_step(carry: State, _):
         carry, _ = _step(scene, params, carry)
         return carry, None
+
+    if checkpoint == "steps":
+        one_step = jax.checkpoint(one_step)
 
     def block(carry: State, _):
         carry, _ = jax.lax.scan(one_step, carry, None, length=save_every)

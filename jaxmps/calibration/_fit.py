@@ -4,7 +4,7 @@ import abc
 import json
 import time
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 import equinox as eqx
 import jax
@@ -187,6 +187,7 @@ def calibrate(
     tol: float = 0.0,
     initial: dict[str, float] | None = None,
     progress: bool = True,
+    checkpoint: bool | Literal["steps"] = True,
 ) -> CalibrationResult:
     """Fit Params `fields` so that probe `probe` reproduces `curve`.
 
@@ -208,6 +209,8 @@ def calibrate(
         tol: stop when the loss falls below `tol`.
         initial: optional starting values overriding the case's Params.
         progress: show a progress bar (tqdm).
+        checkpoint: as for `simulate`; "steps" for the least gradient memory (large
+            scenes or long rollouts), at ~1.2-1.6x the gradient time.
 
     Returns:
         A `CalibrationResult`.
@@ -244,6 +247,7 @@ def calibrate(
             save_every,
             observe,
             throw=False,
+            checkpoint=checkpoint,
         )
         return curve_loss(tr.saved["time"], tr.saved[probe], curve)
 
