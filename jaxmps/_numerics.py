@@ -2,18 +2,33 @@
 
 import jax
 import jax.numpy as jnp
-from jaxtyping import Array, Bool, Float
+from jaxtyping import Array, Bool, Float, Int
+
+# Layout of pair vectors. XLA's CPU backend handles an (n, k, d) array with d = 2 or
+# 3 as its minor axis poorly: gathering its rows, reducing it over k, or taking a
+# dot product over the trailing d runs two to five times slower than the same work
+# on d separate (n, k) arrays (benchmarks/NOTES.md §1, §4 and §6; worst in float64).
+# Pair vectors (offsets r_j - r_i, differences of vector fields) are therefore held
+# as a tuple of d (n, k) arrays, one per axis (`PairVector`), and every sum below
+# runs over one contiguous (n, k) array per component. A tuple rather than a stacked
+# (d, n, k) array: XLA then fuses each component into its consumers instead of
+# writing out the stack (measured: stacked, the float64 explicit step got slower).
+# Per-component sums also avoid a dot_general, which some GPUs round to TF32.
+PairVector = tuple[Float[Array, "n k"], ...]
 
 
 def safe_norm(
-    x: Float[Array, "*batch d"], mask: Bool[Array, "*batch"], placeholder: float = 1.0
+    x: Float[Array, "*batch d"] | PairVector,
+    mask: Bool[Array, "*batch"],
+    placeholder: float = 1.0,
 ) -> Float[Array, "*batch"]:
-    """Euclidean norm over the last axis, `placeholder` where `mask` is False.
+    """Euclidean norm over the last axis of an array, or of a `PairVector`;
+    `placeholder` where `mask` is False.
 
     Uses the double-where trick so that neither the value nor the gradient is NaN for
     coincident points (r = 0) or padded pairs (jax-ml/jax#5798).
     """
-    sq = last_axis_dot(x, x)
+    sq = component_dot(x, x) if isinstance(x, tuple) else last_axis_dot(x, x)
     ok = jnp.logical_and(mask, sq > 0)
     safe_sq = jnp.where(ok, sq, 1.0)
     return jnp.where(ok, jnp.sqrt(safe_sq), placeholder)
@@ -66,29 +81,38 @@ def small_inverse(
     return adjugate / det[..., None, None]
 
 
-# XLA's CPU backend reduces a (n, k, d) array over k, or over a trailing d of 2 or 3,
-# two to three times slower than it sums d separate (n, k) arrays over their last
-# axis (benchmarks/NOTES.md §4), so the pair sums below are written per component.
-# They also avoid a dot_general, which some GPUs would round to TF32 in float32.
+def pair_differences(
+    field: Float[Array, "n d"], index: Int[Array, "n k"]
+) -> PairVector:
+    """field_j - field_i of every listed pair, one (n, k) array per component; the
+    sentinel index n reads field_j = 0 (callers mask empty slots by their weights)."""
+    return tuple(
+        take_rows(field[:, a], index) - field[:, a, None]
+        for a in range(field.shape[-1])
+    )
 
 
 # Choice: `jax.checkpoint` on the per-component sums: without it the backward pass
-# stores each component slice of their (n, k, d) inputs next to the inputs
-# themselves; with it the slices and products are recomputed. The forward program
-# is unchanged; the residuals of a step fall 24.5 -> 20.7 MiB (2898 particles,
-# float32) at the same gradient time (benchmarks/README.md, gradient_memory).
+# stores each component slice of their inputs next to the inputs themselves; with it
+# the slices and products are recomputed. The forward program is unchanged; the
+# residuals of a step fell 24.5 -> 20.7 MiB (2898 particles, float32) at the same
+# gradient time (benchmarks/README.md, gradient_memory).
+@jax.checkpoint
+def component_dot(a: PairVector, b: PairVector) -> Float[Array, "n k"]:
+    """sum_c a[c] b[c] of two pair vectors."""
+    return sum(a_c * b_c for a_c, b_c in zip(a, b, strict=True))
+
+
 @jax.checkpoint
 def last_axis_dot(a: Float[Array, "*batch d"], b: Float[Array, "*batch d"]):
-    """sum_a a[..., a] b[..., a], one component at a time."""
-    return sum(a[..., i] * b[..., i] for i in range(a.shape[-1]))
+    """sum_c a[..., c] b[..., c], one component at a time (small per-particle or
+    per-body vectors; pair vectors use `component_dot`)."""
+    return sum(a[..., c] * b[..., c] for c in range(a.shape[-1]))
 
 
 @jax.checkpoint
 def pair_sum(
-    coefficient: Float[Array, "n k"], vector: Float[Array, "n k d"]
+    coefficient: Float[Array, "n k"], vector: PairVector
 ) -> Float[Array, "n d"]:
     """sum_j coefficient_ij vector_ij, one component at a time."""
-    d = vector.shape[-1]
-    return jnp.stack(
-        [jnp.sum(coefficient * vector[..., i], axis=1) for i in range(d)], axis=-1
-    )
+    return jnp.stack([jnp.sum(coefficient * v, axis=1) for v in vector], axis=-1)

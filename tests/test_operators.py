@@ -124,10 +124,25 @@ def test_small_matrix_helpers_match_linalg(d, rng):
 
 
 def test_pair_sums_match_axis_reductions(rng):
-    from jaxmps._numerics import last_axis_dot, pair_sum
+    from jaxmps._numerics import (
+        component_dot,
+        last_axis_dot,
+        pair_differences,
+        pair_sum,
+        take_rows,
+    )
 
     c = jnp.asarray(rng.normal(size=(7, 5)))
-    v = jnp.asarray(rng.normal(size=(7, 5, 3)))
-    u = jnp.asarray(rng.normal(size=(7, 5, 3)))
-    np.testing.assert_allclose(pair_sum(c, v), jnp.sum(c[..., None] * v, axis=1))
-    np.testing.assert_allclose(last_axis_dot(u, v), jnp.sum(u * v, axis=-1))
+    v = jnp.asarray(rng.normal(size=(3, 7, 5)))
+    u = jnp.asarray(rng.normal(size=(3, 7, 5)))
+    np.testing.assert_allclose(pair_sum(c, tuple(v)), jnp.einsum("nk,dnk->nd", c, v))
+    np.testing.assert_allclose(component_dot(tuple(u), tuple(v)), jnp.sum(u * v, 0))
+    np.testing.assert_allclose(
+        last_axis_dot(u.T, v.T), jnp.sum(u.T * v.T, axis=-1), rtol=1e-12
+    )
+    field = jnp.asarray(rng.normal(size=(7, 3)))
+    index = jnp.asarray(rng.integers(0, 8, size=(7, 5)))  # 7 is the sentinel
+    expected = take_rows(field, index) - field[:, None, :]
+    np.testing.assert_allclose(
+        jnp.stack(pair_differences(field, index)), jnp.moveaxis(expected, -1, 0)
+    )

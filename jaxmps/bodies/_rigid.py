@@ -127,8 +127,8 @@ def with_contact(scene, state, pairs, partner_gradient: Float[Array, "n d"]):
     volume = scene.spacing**scene.dim
     force = jnp.where(is_body(state)[:, None], -volume * partner_gradient, 0.0)
     near = partners & (pairs.distance < scene.rigid.contact_distance * scene.spacing)
-    unit = pairs.offset / pairs.distance[..., None]  # from i towards j
-    normal = -jnp.sum(jnp.where(near[..., None], unit, 0.0), axis=1)
+    # sum of unit vectors from i towards its near partners j
+    normal = -pair_sum(jnp.where(near, 1.0 / pairs.distance, 0.0), pairs.offset)
     return eqx.tree_at(
         lambda s: (s.rigid.particle_contact, s.rigid.particle_normal),
         state,

@@ -246,11 +246,12 @@ class Multigrid(AbstractPreconditioner):
 
         # Level 1: sum each particle's pair entries by the offset of the neighbour's
         # cell (3^d classes), then the particles by cell (one row scatter).
-        neighbour_cells = take_rows(cells, system.index)  # sentinel: off = 0
-        relative = jnp.clip(neighbour_cells - cells[:, None, :], -1, 1) + 1
+        # One axis at a time: gathering rows of the (n, d) cell array is several
+        # times slower on CPU (see `_numerics`). Sentinel slots have off = 0.
         entry = jnp.zeros((n, k), jnp.int32)
         for a in range(dim):
-            entry = entry * 3 + relative[..., a]
+            relative = take_rows(cells[:, a], system.index) - cells[:, a, None]
+            entry = entry * 3 + jnp.clip(relative, -1, 1) + 1
         off = jnp.where(in_system[:, None], system.off, 0.0)
         centre = 3**dim // 2
         rows = [

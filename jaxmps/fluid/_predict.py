@@ -4,7 +4,7 @@ import jax.numpy as jnp
 from jaxtyping import Array, Bool, Float
 
 from .. import neighbours
-from .._numerics import last_axis_dot, pair_sum, take_rows
+from .._numerics import component_dot, pair_differences, pair_sum, take_rows
 from .._params import Params
 from .._types import MOBILE_KINDS, is_kind
 from ..bodies import particle_density, without_internal_pairs
@@ -77,9 +77,9 @@ def collide(
     """
     mobile = jnp.logical_and(active, is_kind(kind, MOBILE_KINDS))
     inverse_r = 1.0 / pairs.distance
-    u_j = take_rows(velocity, pairs.index)
     # > 0: approaching
-    v_n = last_axis_dot(velocity[:, None, :] - u_j, pairs.offset) * inverse_r
+    v_n = -component_dot(pair_differences(velocity, pairs.index), pairs.offset)
+    v_n = v_n * inverse_r
     close = pairs.valid & (pairs.distance < distance) & (v_n > 0) & mobile[:, None]
     partner_mobile = take_rows(mobile, pairs.index)
     share = jnp.where(partner_mobile, 0.5, 1.0)

@@ -6,7 +6,7 @@ import equinox as eqx
 import jax.numpy as jnp
 from jaxtyping import Array, Float
 
-from .._numerics import last_axis_dot, take_rows
+from .._numerics import component_dot, pair_differences
 from ..operators import Pairs, lattice_sum
 
 
@@ -75,8 +75,8 @@ class MixedSource(AbstractSource):
 
     def __call__(self, scene, inputs):
         pairs, u = inputs.pairs, inputs.u_star
-        du = take_rows(u, pairs.index) - u[:, None, :]
-        radial = last_axis_dot(du, pairs.offset) / pairs.distance**2
+        du = pair_differences(u, pairs.index)
+        radial = component_dot(du, pairs.offset) / pairs.distance**2
         divergence = (scene.dim / scene.n0) * jnp.sum(radial * pairs.weight, axis=1)
         return inputs.density / inputs.dt * divergence + self.gamma * _density_term(
             inputs, inputs.n_star, scene.n0
@@ -88,8 +88,8 @@ def density_rate(scene, pairs: Pairs, velocity: Float[Array, "n d"]):
     the number density for the current velocities (seed 001 eq. 2.3)."""
     safe_r = jnp.where(pairs.valid, pairs.distance, scene.r_e)
     slope = jnp.where(pairs.valid, scene.weight.derivative(safe_r, scene.r_e), 0.0)
-    du = take_rows(velocity, pairs.index) - velocity[:, None, :]
-    closing = last_axis_dot(du, pairs.offset) / pairs.distance
+    du = pair_differences(velocity, pairs.index)
+    closing = component_dot(du, pairs.offset) / pairs.distance
     return jnp.sum(slope * closing, axis=1)
 
 

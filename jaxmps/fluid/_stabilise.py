@@ -4,7 +4,13 @@ import equinox as eqx
 import jax.numpy as jnp
 from jaxtyping import Array, Bool, Float
 
-from .._numerics import last_axis_dot, pair_sum, safe_norm, take_rows
+from .._numerics import (
+    component_dot,
+    pair_differences,
+    pair_sum,
+    safe_norm,
+    take_rows,
+)
 from .._types import Kind
 from ..operators import Pairs
 
@@ -55,12 +61,12 @@ class DynamicStabilisation(eqx.Module):
         fluid = jnp.logical_and(active, kind == int(Kind.FLUID))
         listed = pairs.valid
         index = pairs.index
-        offset_k = take_rows(position_k, index) - position_k[:, None, :]
+        offset_k = pair_differences(position_k, index)
         r_k = safe_norm(offset_k, listed, placeholder=1.0)
-        e = jnp.where(listed[..., None], offset_k / r_k[..., None], 0.0)
-        offset = take_rows(predicted, index) - predicted[:, None, :]
-        parallel = last_axis_dot(offset, e)
-        r2 = last_axis_dot(offset, offset)
+        e = tuple(jnp.where(listed, o / r_k, 0.0) for o in offset_k)
+        offset = pair_differences(predicted, index)
+        parallel = component_dot(offset, e)
+        r2 = component_dot(offset, offset)
         contact = self.alpha * scene.spacing
         close = listed & (r2 < contact**2) & fluid[:, None]
         perp2 = jnp.maximum(r2 - parallel**2, 0.0)

@@ -115,7 +115,7 @@ class CorrectedGradient(AbstractGradient):
         w_r2 = w / pairs.distance**2 / n0
         o = pairs.offset
         entries = {
-            (a, b): jnp.sum(w_r2 * o[..., a] * o[..., b], axis=1)
+            (a, b): jnp.sum(w_r2 * o[a] * o[b], axis=1)
             for a in range(dim)
             for b in range(a, dim)
         }

@@ -6,7 +6,7 @@ import equinox as eqx
 import jax.numpy as jnp
 from jaxtyping import Array, Float
 
-from .._numerics import pair_sum, take_rows
+from .._numerics import pair_differences, pair_sum, take_rows
 from ._pairs import Pairs
 from ._weight import AbstractWeight, lattice_sum
 
@@ -33,9 +33,9 @@ def pair_laplacian(
     field: Float[Array, " n *c"],
 ) -> Float[Array, " n *c"]:
     """factor * sum_j c_ij (phi_j - phi_i), scalar or vector `field`."""
-    diff = take_rows(field, pairs.index) - field[:, None]
     if field.ndim == 2:
-        return factor * pair_sum(coefficient, diff)
+        return factor * pair_sum(coefficient, pair_differences(field, pairs.index))
+    diff = take_rows(field, pairs.index) - field[:, None]
     c = coefficient.reshape(coefficient.shape + (1,) * (field.ndim - 1))
     return factor * jnp.sum(diff * c, axis=1)
 

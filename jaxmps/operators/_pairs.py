@@ -5,7 +5,7 @@ import jax
 import jax.numpy as jnp
 from jaxtyping import Array, Bool, Float, Int
 
-from .._numerics import safe_norm, take_rows
+from .._numerics import PairVector, pair_differences, safe_norm
 from ._weight import AbstractWeight
 
 
@@ -15,14 +15,15 @@ class Pairs(eqx.Module):
     Attributes:
         index: neighbour j of particle i, or the sentinel n for an empty slot.
         valid: slot holds a real neighbour with 0 < r_ij < r_e.
-        offset: r_j - r_i [m] (zero where not valid).
+        offset: r_j - r_i [m] (zero where not valid), a tuple of d (n, k) arrays,
+            one per axis (`_numerics.PairVector` says why).
         distance: |r_j - r_i| [m] (r_e where not valid, so divisions stay finite).
         weight: w(|r_ij|) (zero where not valid).
     """
 
     index: Int[Array, "n k"]
     valid: Bool[Array, "n k"]
-    offset: Float[Array, "n k d"]
+    offset: PairVector
     distance: Float[Array, "n k"]
     weight: Float[Array, "n k"]
 
@@ -40,8 +41,7 @@ def make_pairs(
     n = position.shape[0]
     index = jax.lax.stop_gradient(index)
     listed = index < n
-    offset = take_rows(position, index) - position[:, None, :]
-    offset = jnp.where(listed[..., None], offset, 0.0)
+    offset = tuple(jnp.where(listed, o, 0.0) for o in pair_differences(position, index))
     r = safe_norm(offset, listed, placeholder=r_e)
     valid = jnp.logical_and(listed, r < r_e)
     # Coincident particles (r = 0) get r = r_e from safe_norm: they are not neighbours
