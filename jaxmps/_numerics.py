@@ -11,9 +11,9 @@ from jaxtyping import Array, Bool, Float, Int
 # Pair vectors (offsets r_j - r_i, differences of vector fields) are therefore held
 # as a tuple of d (n, k) arrays, one per axis (`PairVector`), and every sum below
 # runs over one contiguous (n, k) array per component. A tuple rather than a stacked
-# (d, n, k) array: XLA then fuses each component into its consumers instead of
-# writing out the stack (measured: stacked, the float64 explicit step got slower).
-# Per-component sums also avoid a dot_general, which some GPUs round to TF32.
+# (d, n, k) array, so that no stacked copy has to be written: XLA fuses each
+# component into its consumers. Per-component sums also avoid a dot_general, which
+# some GPUs round to TF32 in float32.
 PairVector = tuple[Float[Array, "n k"], ...]
 
 
