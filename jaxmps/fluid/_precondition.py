@@ -12,15 +12,6 @@ from jaxtyping import Array, Bool, Float, Int
 
 from .._numerics import take_rows
 
-# Choice: with few slots per row (2-D, 24 by default) the product runs one slot at a
-# time: XLA then fuses the k column gathers and the sum into one loop, where a
-# gather of the (n, k) block and a row sum write and read the block. Measured
-# (benchmarks/NOTES.md §6): 2-D 25k semi-implicit step 51.9 -> 46.5 ms in float32,
-# 102 -> 81 in float64; in 3-D (64 slots) the loop was slower (73 -> 78-95 ms,
-# 10k particles) and compiled 2.6 s longer, and blocks of 4 or 8 slots were slower
-# than either, so rows of more than 32 slots keep the block form.
-_SLOT_LOOP_MAX = 32
-
 
 class PressureSystem(eqx.Module):
     """The PPE matrix in pair form: for i in the system S,
@@ -33,13 +24,7 @@ class PressureSystem(eqx.Module):
     in_system: Bool[Array, " n"]
 
     def matvec(self, p: Float[Array, " n"]) -> Float[Array, " n"]:
-        row = self.diag * p
-        k = self.off.shape[1]
-        if k <= _SLOT_LOOP_MAX:
-            for s in range(k):
-                row = row - self.off[:, s] * take_rows(p, self.index[:, s])
-        else:
-            row = row - jnp.sum(self.off * take_rows(p, self.index), axis=1)
+        row = self.diag * p - jnp.sum(self.off * take_rows(p, self.index), axis=1)
         return jnp.where(self.in_system, row, p)
 
     @property
