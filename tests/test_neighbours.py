@@ -114,3 +114,19 @@ def test_candidate_capacity_is_exact(rng, dim):
     )
     short = build(grid(most - 1), jnp.asarray(x), jnp.ones(300, bool), 300, radius)
     assert bool(short.cell_overflow)
+
+
+@pytest.mark.parametrize("x64", [False, True])
+def test_sort_by_cell_is_the_stable_argsort_in_both_precisions(rng, x64):
+    """The packed 64-bit keys give numpy's stable argsort, also inside a float32
+    (x64 disabled) program, where the keys are built under a local enable_x64."""
+    from jaxmps.neighbours._list import sort_by_cell
+
+    # Many ties and large ids: 3000 particles in up to 2^20 cells.
+    cells = rng.integers(0, 2**20, size=3000)
+    cells[rng.random(3000) < 0.7] = rng.integers(0, 50, size=1)[0]
+    with jax.enable_x64(x64):
+        order, sorted_id = jax.jit(sort_by_cell)(jnp.asarray(cells, jnp.int32))
+        assert order.dtype == jnp.int32 and sorted_id.dtype == jnp.int32
+    np.testing.assert_array_equal(order, np.argsort(cells, kind="stable"))
+    np.testing.assert_array_equal(sorted_id, np.sort(cells))
