@@ -2,27 +2,28 @@
 
 import jax
 import jax.numpy as jnp
-from jaxtyping import Array, Bool, Float, Int
+from jaxtyping import Array, Bool, Float, Int, Num
+
+from ._types import PairVectors
 
 # Layout of pair vectors. XLA's CPU backend handles an (n, k, d) array with d = 2 or
 # 3 as its minor axis poorly: gathering its rows, reducing it over k, or taking a
 # dot product over the trailing d runs two to five times slower than the same work
 # on d separate (n, k) arrays (benchmarks/NOTES.md §1, §4 and §6; worst in float64).
 # Pair vectors (offsets r_j - r_i, differences of vector fields) are therefore held
-# as a tuple of d (n, k) arrays, one per axis (`PairVector`), and every sum below
-# runs over one contiguous (n, k) array per component. A tuple rather than a stacked
-# (d, n, k) array, so that no stacked copy has to be written: XLA fuses each
+# as a tuple of d (n, k) arrays, one per axis (`_types.PairVectors`), and every sum
+# below runs over one contiguous (n, k) array per component. A tuple rather than a
+# stacked (d, n, k) array, so that no stacked copy has to be written: XLA fuses each
 # component into its consumers. Per-component sums also avoid a dot_general, which
 # some GPUs round to TF32 in float32.
-PairVector = tuple[Float[Array, "n k"], ...]
 
 
 def safe_norm(
-    x: Float[Array, "*batch d"] | PairVector,
+    x: Float[Array, "*batch d"] | PairVectors,
     mask: Bool[Array, "*batch"],
     placeholder: float = 1.0,
 ) -> Float[Array, "*batch"]:
-    """Euclidean norm over the last axis of an array, or of a `PairVector`;
+    """Euclidean norm over the last axis of an array, or of a `PairVectors`;
     `placeholder` where `mask` is False.
 
     Uses the double-where trick so that neither the value nor the gradient is NaN for
@@ -82,10 +83,11 @@ def small_inverse(
 
 
 def pair_differences(
-    field: Float[Array, "n d"], index: Int[Array, "n k"]
-) -> PairVector:
-    """field_j - field_i of every listed pair, one (n, k) array per component; the
-    sentinel index n reads field_j = 0 (callers mask empty slots by their weights)."""
+    field: Num[Array, "n d"], index: Int[Array, "n k"]
+) -> tuple[Num[Array, "n k"], ...]:
+    """field_j - field_i of every listed pair, one (n, k) array per component (float
+    fields give `PairVectors`); the sentinel index n reads field_j = 0 (callers mask
+    empty slots by their weights)."""
     return tuple(
         take_rows(field[:, a], index) - field[:, a, None]
         for a in range(field.shape[-1])
@@ -98,7 +100,7 @@ def pair_differences(
 # residuals of a step fell 24.5 -> 20.7 MiB (2898 particles, float32) at the same
 # gradient time (benchmarks/README.md, gradient_memory).
 @jax.checkpoint
-def component_dot(a: PairVector, b: PairVector) -> Float[Array, "n k"]:
+def component_dot(a: PairVectors, b: PairVectors) -> Float[Array, "n k"]:
     """sum_c a[c] b[c] of two pair vectors."""
     return sum(a_c * b_c for a_c, b_c in zip(a, b, strict=True))
 
@@ -112,7 +114,7 @@ def last_axis_dot(a: Float[Array, "*batch d"], b: Float[Array, "*batch d"]):
 
 @jax.checkpoint
 def pair_sum(
-    coefficient: Float[Array, "n k"], vector: PairVector
+    coefficient: Float[Array, "n k"], vector: PairVectors
 ) -> Float[Array, "n d"]:
     """sum_j coefficient_ij vector_ij, one component at a time."""
     return jnp.stack([jnp.sum(coefficient * v, axis=1) for v in vector], axis=-1)

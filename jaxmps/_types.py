@@ -18,7 +18,9 @@ Kinds = Int[Array, " n"]
 Indices = Int[Array, "n k"]
 PairMask = Bool[Array, "n k"]
 PairField = Float[Array, "n k"]
-PairVectors = Float[Array, "n k d"]
+# Pair vectors as one (n, k) array per axis, not an (n, k, d) array (`_numerics`
+# says why).
+PairVectors = tuple[Float[Array, "n k"], ...]
 
 
 class Kind(enum.IntEnum):

@@ -10,7 +10,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Bool, Float, Int
 
-from .._numerics import take_rows
+from .._numerics import pair_differences, take_rows
 
 
 class PressureSystem(eqx.Module):
@@ -246,11 +246,9 @@ class Multigrid(AbstractPreconditioner):
 
         # Level 1: sum each particle's pair entries by the offset of the neighbour's
         # cell (3^d classes), then the particles by cell (one row scatter).
-        # One axis at a time: gathering rows of the (n, d) cell array is several
-        # times slower on CPU (see `_numerics`). Sentinel slots have off = 0.
+        # Sentinel slots have off = 0.
         entry = jnp.zeros((n, k), jnp.int32)
-        for a in range(dim):
-            relative = take_rows(cells[:, a], system.index) - cells[:, a, None]
+        for relative in pair_differences(cells, system.index):
             entry = entry * 3 + jnp.clip(relative, -1, 1) + 1
         off = jnp.where(in_system[:, None], system.off, 0.0)
         centre = 3**dim // 2

@@ -5,7 +5,8 @@ import jax
 import jax.numpy as jnp
 from jaxtyping import Array, Bool, Float, Int
 
-from .._numerics import PairVector, pair_differences, safe_norm
+from .._numerics import pair_differences, safe_norm
+from .._types import PairVectors
 from ._weight import AbstractWeight
 
 
@@ -16,14 +17,14 @@ class Pairs(eqx.Module):
         index: neighbour j of particle i, or the sentinel n for an empty slot.
         valid: slot holds a real neighbour with 0 < r_ij < r_e.
         offset: r_j - r_i [m] (zero where not valid), a tuple of d (n, k) arrays,
-            one per axis (`_numerics.PairVector` says why).
+            one per axis (`_numerics` says why).
         distance: |r_j - r_i| [m] (r_e where not valid, so divisions stay finite).
         weight: w(|r_ij|) (zero where not valid).
     """
 
     index: Int[Array, "n k"]
     valid: Bool[Array, "n k"]
-    offset: PairVector
+    offset: PairVectors
     distance: Float[Array, "n k"]
     weight: Float[Array, "n k"]
 
