@@ -3,6 +3,7 @@
 import math
 
 import equinox as eqx
+import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
@@ -10,6 +11,7 @@ from helpers import small_tank
 
 import jaxmps
 from jaxmps.fluid import Harmonic, HarmonicParams, PrescribedMotion
+from jaxmps.scenes import StripLevel
 from jaxmps.scenes._wave_tank import linear_wave_number, piston_height_ratio
 
 
@@ -47,32 +49,96 @@ def test_harmonic_wall_motion_is_exact_and_drift_free():
     np.testing.assert_allclose(tr.state.velocity[idx, 0], expected, rtol=1e-9)
 
 
-def test_piston_wave_height_within_10_percent_of_linear_theory():
-    """kh = 1.42, S = 1.5 cm, H_linear = 2.0 cm (H/lambda = 0.025). First-harmonic
-    amplitude at 0.6 m from the piston, fitted over two periods after the ramp and
-    before the reflection returns. Measured: +7.0 % at 19e84d7 (float64).
+GAUGES = (0.3, 0.4, 0.5, 0.6, 0.7, 0.8)  # [m] from the piston's rest position
 
-    Known weakness (benchmarks/NOTES.md §6): this single run moves with round-off.
-    Perturbing the initial fluid positions by 1e-10 m, or changing the summation
-    order of the pressure product (564f79e, reverted), gave -3.8 to -15 %, so the
-    test can fail on a change that is exact in real arithmetic.
+
+def incident_wave_height(t, x, eta, period, k):
+    """Height of the incident (+x) wave at frequency 2 pi / period and wave number
+    k, separated from the reflected (-x) one by least squares over gauges at x
+    (Mansard & Funke 1980, with k fixed by linear dispersion): eta(x, t) =
+    Re[a_i e^{i(w t - k x)} + a_r e^{i(w t + k x)}] + a mean level per gauge.
+    Returns (2 |a_i|, |a_r| / |a_i|)."""
+    w = 2 * np.pi / period
+    tt, xx = np.meshgrid(t, x, indexing="ij")
+    columns = [
+        np.cos(w * tt - k * xx),
+        np.sin(w * tt - k * xx),
+        np.cos(w * tt + k * xx),
+        np.sin(w * tt + k * xx),
+    ] + [(xx == g).astype(float) for g in x]
+    basis = np.stack([c.ravel() for c in columns], axis=1)
+    coef, *_ = np.linalg.lstsq(basis, eta.ravel(), rcond=None)
+    incident, reflected = np.hypot(*coef[0:2]), np.hypot(*coef[2:4])
+    return 2 * incident, reflected / incident
+
+
+def test_incident_wave_separation_recovers_synthetic_waves():
+    period, k = 0.8, 7.1
+    t = np.linspace(2.0, 3.6, 400)
+    x = np.asarray(GAUGES)
+    tt, xx = np.meshgrid(t, x, indexing="ij")
+    w = 2 * np.pi / period
+    eta = (
+        0.01 * np.cos(w * tt - k * xx + 0.3)
+        + 0.002 * np.sin(w * tt + k * xx)
+        + 0.001 * xx
+    )
+    height, reflection = incident_wave_height(t, x, eta, period, k)
+    assert height == pytest.approx(0.02, rel=1e-9)
+    assert reflection == pytest.approx(0.2, rel=1e-9)
+
+
+@pytest.mark.slow
+def test_piston_wave_height_against_linear_theory():
+    """kh = 1.42, l0 = 1 cm (20 particles deep), two strokes in one vmapped run:
+    S = 1.5 and 3 cm (H_linear = 2.0 and 4.0 cm, H/lambda = 0.023 and 0.045). The
+    incident first harmonic is separated from the far wall's reflection over six
+    gauges 0.3-0.8 m from the piston, over two periods after the ramp.
+
+    Linear piston theory is the inviscid, leak-free ideal, so the simulated wave
+    may fall below it (numerical damping on the way to the gauges), not above.
+    Measured (float64, at 3c5e877): this run gives 0.84 and 0.93 of linear theory
+    (mean 0.88); four round-off-level perturbations of the initial positions
+    (1e-10 m) gave means of 0.89-0.94. Each stroke alone spreads over 0.86-0.98;
+    at l0 = 5 mm one run gave 0.93. A single gauge is not a measurement here: the
+    reflection (~10 % of the incident amplitude inside the window) modulates the
+    height along the tank by +-10 %, and the earlier single-gauge test at 0.6 m
+    (limit 10 %) passed near an antinode, by -15 % to +7 % with round-off.
     """
-    case = jaxmps.scenes.wave_tank(depth=0.2, stroke=0.015, tank_length=1.6, t_end=3.6)
-    obs = jaxmps.scenes.observe_probes(case.probes)
-    n = int(case.t_end / float(case.params.dt)) // 10 * 10
-    tr = jaxmps.simulate(case.scene, case.params, case.state, n, 10, obs)
-    t = np.asarray(tr.saved["time"])
-    eta = np.asarray(tr.saved["eta"])
-    period = case.config["wave_period"]
-    window = (t >= 2.0) & (t < 3.6)
-    basis = np.c_[
-        np.cos(2 * np.pi * t[window] / period),
-        np.sin(2 * np.pi * t[window] / period),
-        np.ones(window.sum()),
+    cases = [
+        jaxmps.scenes.wave_tank(depth=0.2, stroke=s, tank_length=1.6, t_end=3.6)
+        for s in (0.015, 0.03)
     ]
-    coef, *_ = np.linalg.lstsq(basis, eta[window], rcond=None)
-    height = 2 * np.hypot(coef[0], coef[1])
-    assert height == pytest.approx(case.config["linear_wave_height"], rel=0.10)
+    # One geometry (the larger stroke's, whose bed reaches further behind the
+    # piston) and each stroke's motion table.
+    scene, state = cases[1].scene, cases[1].state
+    params = jax.tree.map(lambda *p: jnp.stack(p), *[c.params for c in cases])
+    l0 = cases[0].config["spacing"]
+    probes = tuple(StripLevel(f"eta_{x}", x, 5 * l0, l0, 0.2) for x in GAUGES)
+    observe = jaxmps.scenes.observe_probes(probes)
+    t_end = cases[0].t_end
+    n = int(t_end / float(cases[0].params.dt)) // 10 * 10
+
+    def run(p):
+        return jaxmps.simulate(scene, p, state, n, 10, observe, throw=False)
+
+    tr = jax.vmap(run)(params)
+    assert np.all(np.asarray(tr.result == jaxmps.Result.successful))
+    t = np.asarray(tr.saved["time"][0])
+    window = (t >= 2.0) & (t < t_end)
+    ratios = []
+    for member, case in enumerate(cases):
+        eta = np.stack([np.asarray(tr.saved[p.name][member]) for p in probes], 1)
+        height, reflection = incident_wave_height(
+            t[window],
+            np.asarray(GAUGES),
+            eta[window],
+            case.config["wave_period"],
+            case.config["wave_number"],
+        )
+        assert reflection < 0.3
+        ratios.append(height / case.config["linear_wave_height"])
+    assert 0.80 < np.mean(ratios) < 1.05, ratios
 
 
 def test_beach_geometry_and_short_run():
