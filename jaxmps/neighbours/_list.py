@@ -92,13 +92,12 @@ def first_hits(
     found = rank < through[:, -1:]
     word_of = jnp.zeros_like(rank)
     word = jnp.broadcast_to(words[:, :1], (rows, k))
+    before = jnp.zeros_like(rank)  # hits in the words before word_of
     for w in range(1, words_per_row):
         later = through[:, w - 1 : w] <= rank
         word_of = word_of + later.astype(jnp.int32)
         word = jnp.where(later, words[:, w : w + 1], word)
-    before = jnp.zeros_like(rank)
-    for w in range(words_per_row - 1):
-        before = jnp.where(word_of > w, through[:, w : w + 1], before)
+        before = jnp.where(later, through[:, w - 1 : w], before)
     rank = rank - before
     # Largest bit position p with popcount(word & (2^p - 1)) <= rank.
     position = jnp.zeros_like(rank)
