@@ -30,6 +30,10 @@ class Scene(eqx.Module):
         lam: Laplacian coefficient lambda [m^2].
         grid: neighbour-search cell grid; its box is the domain.
         max_neighbours: neighbour slots per particle.
+        neighbour_skin: the lists are searched within r_e + neighbour_skin [m], so
+            that those built at the predicted positions of one step serve the start
+            of the next while no particle has moved by half the skin
+            (`neighbours.NeighbourCache`); 0 searches twice per step.
         courant_limit: largest max|u| dt / l0 accepted before `Result.step_too_large`.
         viscous_limit: largest viscous number 2 d nu dt / lambda accepted (the
             explicit viscous term's diffusion limit); beyond it a concrete dt is
@@ -54,6 +58,7 @@ class Scene(eqx.Module):
     lam: float
     grid: Grid
     max_neighbours: int
+    neighbour_skin: float = 0.0
     courant_limit: float = 0.5
     viscous_limit: float = 1.0
     weight: AbstractWeight = MPSWeight()
@@ -76,7 +81,14 @@ class Scene(eqx.Module):
             raise ValueError(f"Scene.dim must be 2 or 3, got {self.dim}.")
         if len(self.grid.shape) != self.dim:
             raise ValueError("Scene.grid must have one axis per dimension.")
-        if self.grid.radius < self.r_e:
-            raise ValueError("Scene.grid.cell_size x Scene.grid.reach must be >= r_e.")
+        if not self.neighbour_skin >= 0:
+            raise ValueError(
+                f"Scene.neighbour_skin must be >= 0, got {self.neighbour_skin}."
+            )
+        if self.grid.radius < (self.r_e + self.neighbour_skin) * (1 - 1e-12):
+            raise ValueError(
+                "Scene.grid.cell_size x Scene.grid.reach must be >= r_e + "
+                "neighbour_skin; build the Scene with `make_scene`."
+            )
         if self.max_neighbours < 1 or self.capacity < 1:
             raise ValueError("Scene.max_neighbours and Scene.capacity must be >= 1.")

@@ -1,5 +1,6 @@
 """Rollouts: nested `lax.scan` with checkpointing, an observe function, and `throw`."""
 
+import dataclasses
 import inspect
 from collections.abc import Callable
 from typing import Any, Literal
@@ -13,6 +14,7 @@ from ._result import Result
 from ._scene import Scene
 from ._state import State
 from ._step import _step, check_compatible
+from .neighbours import NeighbourCache
 
 # Rigid-body fields saved with each frame (the run file's /bodies group).
 BODY_FIELDS = (
@@ -165,6 +167,21 @@ def _lower(*args, **kwargs):
 simulate.lower = _lower
 
 
+def _with_neighbours(scene: Scene, state: State) -> State:
+    """The state with an (empty) neighbour cache for the rollout to carry, when the
+    Scene's lists have a skin (`Scene.neighbour_skin`)."""
+    if scene.neighbour_skin <= 0 or state.neighbours is not None:
+        return state
+    cache = NeighbourCache.empty(state.position, state.active, scene.max_neighbours)
+    return dataclasses.replace(state, neighbours=cache)
+
+
+def _without_neighbours(state: State) -> State:
+    if state.neighbours is None:
+        return state
+    return dataclasses.replace(state, neighbours=None)
+
+
 @eqx.filter_jit
 def _simulate(
     scene, params, state, n_steps, save_every, observe, *, throw=True, checkpoint=True
@@ -180,11 +197,14 @@ def _simulate(
 
     def block(carry: State, _):
         carry, _ = jax.lax.scan(one_step, carry, None, length=save_every)
-        return carry, observe(scene, carry)
+        return carry, observe(scene, _without_neighbours(carry))
 
     if checkpoint:
         block = jax.checkpoint(block)
-    final, saved = jax.lax.scan(block, state, None, length=n_steps // save_every)
+    final, saved = jax.lax.scan(
+        block, _with_neighbours(scene, state), None, length=n_steps // save_every
+    )
+    final = _without_neighbours(final)
     out = Trajectory(state=final, saved=saved, result=final.result)
     if throw:
         out = final.result.error_if(out, final.result != Result.successful)

@@ -5,6 +5,7 @@ from jaxtyping import Array, Bool, Float, Int
 
 from ._result import Result
 from .bodies._state import RigidState
+from .neighbours import NeighbourCache
 
 
 class State(eqx.Module):
@@ -22,6 +23,10 @@ class State(eqx.Module):
         result: the first failure of the run so far, or `Result.successful`.
         rigid: the rigid bodies' sub-state, present exactly when the Scene has
             rigid bodies.
+        neighbours: the neighbour lists carried to the next step, or None (a new
+            search at the start of every step). `simulate` adds it for the rollout
+            (when `Scene.neighbour_skin` > 0) and removes it from what it returns
+            and observes; a State a user builds or receives holds None.
     """
 
     time: Float[Array, ""]
@@ -33,3 +38,4 @@ class State(eqx.Module):
     active: Bool[Array, " n"]
     result: Result
     rigid: RigidState | None = None
+    neighbours: NeighbourCache | None = None

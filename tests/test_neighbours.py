@@ -4,7 +4,13 @@ import numpy as np
 import pytest
 from helpers import brute_force_neighbours, listed
 
-from jaxmps.neighbours import Grid, build, candidate_counts
+from jaxmps.neighbours import (
+    Grid,
+    NeighbourCache,
+    build,
+    candidate_counts,
+    reuse_or_build,
+)
 
 
 @pytest.mark.parametrize("reach", [1, 2])
@@ -130,3 +136,99 @@ def test_sort_by_cell_is_the_stable_argsort_in_both_precisions(rng, x64):
         assert order.dtype == jnp.int32 and sorted_id.dtype == jnp.int32
     np.testing.assert_array_equal(order, np.argsort(cells, kind="stable"))
     np.testing.assert_array_equal(sorted_id, np.sort(cells))
+
+
+def _within(index, x, radius):
+    """Pairs of the lists `index` closer than `radius` at positions x (bool n x n)."""
+    n = x.shape[0]
+    out = listed(index, n)
+    d = np.linalg.norm(x[:, None] - x[None], axis=-1)
+    return out & (d < radius)
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+def test_carried_lists_hold_every_pair_while_moves_stay_below_half_the_skin(rng, dim):
+    n, radius, skin = (300, 0.15, 0.03) if dim == 2 else (400, 0.25, 0.05)
+    x0 = rng.uniform(0.0, 1.0, (n, dim))
+    active = rng.uniform(size=n) > 0.1
+    grid = Grid(
+        origin=(0.0,) * dim,
+        cell_size=(radius + skin) / 2,
+        shape=(12,) * dim if dim == 2 else (7,) * dim,
+        candidate_capacity=300 if dim == 2 else 600,
+        reach=2,
+    )
+    first = build(grid, jnp.asarray(x0), jnp.asarray(active), 150, radius + skin)
+    cache = NeighbourCache.of(first, jnp.asarray(x0), jnp.asarray(active))
+    # Every active particle moves by just under skin / 2 in a random direction.
+    step = rng.normal(size=(n, dim))
+    step *= 0.499 * skin / np.linalg.norm(step, axis=1, keepdims=True)
+    x1 = np.clip(x0 + step, 0.0, 0.999)
+    reused = reuse_or_build(
+        grid, jnp.asarray(x1), jnp.asarray(active), 150, radius, skin, cache
+    )
+    # The carried lists themselves, not a new search ...
+    np.testing.assert_array_equal(np.asarray(reused.index), np.asarray(first.index))
+    assert not bool(reused.neighbour_overflow) and not bool(reused.cell_overflow)
+    # ... and they hold exactly the pairs a brute-force search finds now.
+    ref = brute_force_neighbours(x1, active, radius)
+    np.testing.assert_array_equal(_within(reused.index, x1, radius), ref)
+
+
+def test_lists_are_searched_again_after_a_long_move_or_a_new_particle(rng):
+    n, radius, skin = 300, 0.15, 0.03
+    x0 = rng.uniform(0.1, 0.9, (n, 2))
+    active = np.ones(n, bool)
+    active[-5:] = False
+    grid = Grid(
+        origin=(0.0, 0.0),
+        cell_size=0.09,
+        shape=(12, 12),
+        candidate_capacity=300,
+        reach=2,
+    )
+    first = build(grid, jnp.asarray(x0), jnp.asarray(active), 150, radius + skin)
+    cache = NeighbourCache.of(first, jnp.asarray(x0), jnp.asarray(active))
+
+    def check(x, active):
+        got = reuse_or_build(
+            grid, jnp.asarray(x), jnp.asarray(active), 150, radius, skin, cache
+        )
+        new = build(grid, jnp.asarray(x), jnp.asarray(active), 150, radius + skin)
+        np.testing.assert_array_equal(np.asarray(got.index), np.asarray(new.index))
+        ref = brute_force_neighbours(x, active, radius)
+        np.testing.assert_array_equal(_within(got.index, x, radius), ref)
+
+    # One particle moves by 0.6 skin (to where it gains neighbours), the rest stay.
+    x1 = x0.copy()
+    x1[0] += [0.6 * skin, 0.0]
+    check(x1, active)
+    # Nobody moves, but a pool slot is switched on next to particle 0.
+    x2 = x0.copy()
+    x2[-1] = x0[0] + [0.5 * radius, 0.0]
+    switched = active.copy()
+    switched[-1] = True
+    check(x2, switched)
+    # An empty cache (the first step of a rollout) searches.
+    empty = NeighbourCache.empty(jnp.asarray(x0), jnp.asarray(active), 150)
+    got = reuse_or_build(
+        grid, jnp.asarray(x0), jnp.asarray(active), 150, radius, skin, empty
+    )
+    np.testing.assert_array_equal(np.asarray(got.index), np.asarray(first.index))
+
+
+def test_neighbour_skin_settings_are_checked():
+    import dataclasses
+
+    import jaxmps
+
+    x = np.stack(np.meshgrid(np.arange(5.0), np.arange(5.0)), -1).reshape(-1, 2)
+    domain = ((-3.0, -3.0), (8.0, 8.0))
+    with pytest.raises(ValueError, match="neighbour_skin"):
+        jaxmps.make_scene(x, 1.0, domain, neighbour_skin=-0.1)
+    scene = jaxmps.make_scene(x, 1.0, domain)
+    assert scene.neighbour_skin == pytest.approx(0.12)
+    assert scene.grid.radius >= scene.r_e + scene.neighbour_skin
+    # A skin the grid's cells were not sized for is refused.
+    with pytest.raises(ValueError, match="r_e \\+ neighbour_skin"):
+        dataclasses.replace(scene, neighbour_skin=0.5)

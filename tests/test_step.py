@@ -137,3 +137,31 @@ def test_bad_inputs_raise_clear_errors():
     other, _, _ = small_tank(width=0.05)
     with pytest.raises(ValueError, match="Scene expects"):
         jaxmps.simulate(other, params, state, 2, 2)
+
+
+@pytest.mark.parametrize("solver", ["semi_implicit", "explicit"])
+def test_carried_neighbour_lists_change_a_rollout_by_round_off_only(solver):
+    # simulate carries the lists of each step's predicted positions to the next
+    # step (tests/test_neighbours.py checks when they are used); a loop of `step`
+    # on a State without them searches twice per step.
+    case = jaxmps.scenes.dam_break(spacing=0.146 / 8, solver=solver)
+    scene, params, state = case.scene, case.params, case.state
+    assert scene.neighbour_skin == pytest.approx(0.12 * scene.spacing)
+    n_steps = 40
+    rollout = jaxmps.simulate(scene, params, state, n_steps, 10, throw=True)
+    assert rollout.state.neighbours is None and rollout.saved.position.shape[0] == 4
+    looped = state
+    for _ in range(n_steps):
+        looped, _ = jaxmps.step(scene, params, looped)
+    assert looped.neighbours is None
+    scale = float(jnp.max(jnp.abs(looped.position)))
+    np.testing.assert_allclose(
+        rollout.state.position, looped.position, rtol=0, atol=1e-11 * scale
+    )
+    np.testing.assert_allclose(
+        rollout.state.pressure,
+        looped.pressure,
+        rtol=0,
+        atol=1e-8 * float(jnp.max(looped.pressure)),
+    )
+    assert bool(jnp.any(looped.position != state.position))

@@ -19,7 +19,12 @@ from ..operators import (
     number_density,
     reference_constants,
 )
-from ._predict import is_mobile, neighbour_pairs, predict_state_velocity
+from ._predict import (
+    carry_neighbours,
+    is_mobile,
+    neighbour_pairs,
+    predict_state_velocity,
+)
 from ._semi_implicit import AbstractSolver
 
 
@@ -76,7 +81,9 @@ class Explicit(AbstractSolver):
     def advance(self, scene, params, state):
         dt = params.dt
         mobile = is_mobile(state.kind, state.active)
-        nbrs_k, pairs_k = neighbour_pairs(scene, state.position, state.active)
+        nbrs_k, pairs_k = neighbour_pairs(
+            scene, state.position, state.active, state.neighbours
+        )
         u_star = predict_state_velocity(scene, params, state, pairs_k)
         x_star = jnp.where(
             mobile[:, None], state.position + dt * u_star, state.position
@@ -122,6 +129,7 @@ class Explicit(AbstractSolver):
             active=state.active,
             result=state.result,
             rigid=state.rigid,
+            neighbours=carry_neighbours(state, nbrs, x_star),
         )
         if state.rigid is not None:
             partner = contact_partners(state, pairs)

@@ -91,9 +91,34 @@ def is_mobile(kind, active) -> Bool[Array, " n"]:
     return jnp.logical_and(active, is_kind(kind, MOBILE_KINDS))
 
 
-def neighbour_pairs(scene, position: Float[Array, "n d"], active: Bool[Array, " n"]):
-    """Neighbour lists at `position` and their pair geometry: (Neighbours, Pairs)."""
-    nbrs = neighbours.build(
-        scene.grid, position, active, scene.max_neighbours, scene.r_e
-    )
+def neighbour_pairs(
+    scene,
+    position: Float[Array, "n d"],
+    active: Bool[Array, " n"],
+    cache: neighbours.NeighbourCache | None = None,
+):
+    """Neighbour lists at `position` and their pair geometry: (Neighbours, Pairs).
+
+    The lists are searched within r_e + `scene.neighbour_skin`, so that they can be
+    carried to the next step (`neighbours.NeighbourCache`); with `cache`, its lists
+    are used instead of a search while they still hold every pair closer than r_e.
+    Pairs beyond r_e are masked by the pair geometry (`Pairs.valid`).
+    """
+    skin = scene.neighbour_skin
+    if cache is None:
+        nbrs = neighbours.build(
+            scene.grid, position, active, scene.max_neighbours, scene.r_e + skin
+        )
+    else:
+        nbrs = neighbours.reuse_or_build(
+            scene.grid, position, active, scene.max_neighbours, scene.r_e, skin, cache
+        )
     return nbrs, make_pairs(nbrs.index, position, scene.weight, scene.r_e)
+
+
+def carry_neighbours(state, nbrs, position):
+    """The cache the next step receives: `nbrs` (built at `position`) when the
+    state carries one, else None."""
+    if state.neighbours is None:
+        return None
+    return neighbours.NeighbourCache.of(nbrs, position, state.active)

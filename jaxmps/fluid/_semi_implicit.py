@@ -19,7 +19,13 @@ from ..bodies import (
 from ..operators import number_density
 from ._correct import pressure_gradient
 from ._precondition import AbstractPreconditioner, Multigrid
-from ._predict import collide, is_mobile, neighbour_pairs, predict_state_velocity
+from ._predict import (
+    carry_neighbours,
+    collide,
+    is_mobile,
+    neighbour_pairs,
+    predict_state_velocity,
+)
 from ._pressure import solve_pressure
 from ._source import AbstractSource, MixedSource, SourceInputs
 from ._stabilise import DynamicStabilisation
@@ -98,7 +104,9 @@ class SemiImplicit(AbstractSolver):
         dt = params.dt
         mobile = is_mobile(state.kind, state.active)
         # 1. Explicit part at positions r^k (eq. 2.2-3, 2.2-5).
-        nbrs_k, pairs_k = neighbour_pairs(scene, state.position, state.active)
+        nbrs_k, pairs_k = neighbour_pairs(
+            scene, state.position, state.active, state.neighbours
+        )
         u_star = predict_state_velocity(scene, params, state, pairs_k)
         if self.collision_distance is not None:
             u_star = collide(
@@ -193,6 +201,7 @@ class SemiImplicit(AbstractSolver):
             active=state.active,
             result=state.result,
             rigid=state.rigid,
+            neighbours=carry_neighbours(state, nbrs, x_star),
         )
         if state.rigid is not None:
             new_state = with_contact(scene, new_state, pairs, contact_gradient)

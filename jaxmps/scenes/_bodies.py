@@ -8,7 +8,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .. import geometry
-from .._build import add_rigid_bodies, make_state
+from .._build import NEIGHBOUR_SKIN, add_rigid_bodies, make_state
 from .._types import Kind
 from ..bodies import Coulomb
 from ._case import Case
@@ -57,9 +57,9 @@ def _body_case(config, fluid, box, walls, wall_kind, domain, speed, orientation)
         [np.full(len(fluid), -1), np.zeros(len(box), int), np.full(len(walls), -1)]
     )
     # A rotating body fills cells differently from the initial lattice: allow the
-    # densest lattice packing of a particle's stencil box (5 cells of r_e / 2 a
-    # side), with margin.
-    stencil_box = 2.5 * discretisation(config)["r_e"]
+    # densest lattice packing of a particle's stencil box (5 cells of
+    # (r_e + skin) / 2 a side), with margin.
+    stencil_box = 2.5 * (discretisation(config)["r_e"] + NEIGHBOUR_SKIN)
     scene = case_scene(
         config,
         position,
