@@ -14,7 +14,7 @@ from ._result import Result
 from ._scene import Scene
 from ._state import State
 from ._step import _step, check_compatible
-from .neighbours import NeighbourCache
+from .neighbours import NeighbourCache, joint_reuse, joint_reuse_axis
 
 # Rigid-body fields saved with each frame (the run file's /bodies group).
 BODY_FIELDS = (
@@ -133,6 +133,7 @@ def simulate(
         observe,
         throw=throw,
         checkpoint=checkpoint,
+        joint_axis=joint_reuse_axis(),
     )
 
 
@@ -184,8 +185,26 @@ def _without_neighbours(state: State) -> State:
 
 @eqx.filter_jit
 def _simulate(
-    scene, params, state, n_steps, save_every, observe, *, throw=True, checkpoint=True
+    scene,
+    params,
+    state,
+    n_steps,
+    save_every,
+    observe,
+    *,
+    throw=True,
+    checkpoint=True,
+    joint_axis=None,
 ):
+    # `joint_axis` (static, so part of the compilation cache key): the vmapped axis
+    # over which carried neighbour lists are reused jointly (`neighbours.joint_reuse`).
+    with joint_reuse(joint_axis):
+        return _rollout(
+            scene, params, state, n_steps, save_every, observe, throw, checkpoint
+        )
+
+
+def _rollout(scene, params, state, n_steps, save_every, observe, throw, checkpoint):
     save_every = n_steps if save_every is None else save_every
 
     def one_step(carry: State, _):

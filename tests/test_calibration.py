@@ -140,3 +140,15 @@ def test_calibrate_a_per_body_friction_coefficient():
     assert res.history["rigid.mu_kinetic"][0] == pytest.approx(0.3)
     assert abs(res.values["rigid.mu_kinetic"] / 0.45 - 1) < 0.02
     assert res.params.rigid.mu_kinetic.shape == (1,)
+
+
+def test_simulate_before_and_after_a_sweep_of_the_same_shapes(case):
+    # The sweep compiles its rollout with a joint neighbour-reuse decision over its
+    # batch axis; a plain simulate of the same shapes before and after must not
+    # pick up that program (it would name an axis that is not there).
+    obs = jaxmps.scenes.observe_probes(case.probes)
+    before = jaxmps.simulate(case.scene, case.params, case.state, 20, 10, obs)
+    res = jaxmps.sweep(case, {"viscosity": jnp.array([1e-6, 2e-6])}, 20, 10)
+    after = jaxmps.simulate(case.scene, case.params, case.state, 20, 10, obs)
+    np.testing.assert_array_equal(after.saved["front"], before.saved["front"])
+    np.testing.assert_allclose(res.saved["front"][0], before.saved["front"], rtol=1e-10)

@@ -9,6 +9,7 @@ from jaxmps.neighbours import (
     NeighbourCache,
     build,
     candidate_counts,
+    joint_reuse,
     reuse_or_build,
 )
 
@@ -232,3 +233,46 @@ def test_neighbour_skin_settings_are_checked():
     # A skin the grid's cells were not sized for is refused.
     with pytest.raises(ValueError, match="r_e \\+ neighbour_skin"):
         dataclasses.replace(scene, neighbour_skin=0.5)
+
+
+def test_a_batch_decides_jointly_and_keeps_the_branch(rng):
+    n, radius, skin = 200, 0.15, 0.03
+    x0 = rng.uniform(0.1, 0.9, (n, 2))
+    active = jnp.ones(n, bool)
+    grid = Grid(
+        origin=(0.0, 0.0),
+        cell_size=0.09,
+        shape=(12, 12),
+        candidate_capacity=300,
+        reach=2,
+    )
+    first = build(grid, jnp.asarray(x0), active, 150, radius + skin)
+    cache = NeighbourCache.of(first, jnp.asarray(x0), active)
+    # Member 0 stays within half the skin, member 1 moves one particle beyond it.
+    x1 = x0.copy()
+    x1[3] += [0.6 * skin, 0.0]
+    xs = jnp.asarray(np.stack([x0, x1]))
+    caches = jax.tree.map(lambda a: jnp.stack([a, a]), cache)
+
+    def lists(x, c):
+        return reuse_or_build(grid, x, active, 150, radius, skin, c).index
+
+    plain = jax.vmap(lists)
+    with joint_reuse("batch"):
+        joint = jax.vmap(lists, axis_name="batch")
+        joint_jaxpr = str(jax.make_jaxpr(joint)(xs, caches))
+        got = joint(xs, caches)
+    # A plain vmap turns the branch into a select; the joint decision keeps it.
+    assert "cond[" not in str(jax.make_jaxpr(plain)(xs, caches))
+    assert "cond[" in joint_jaxpr
+    # Member 1 must search, so both do: same lists as a search, and the pairs.
+    for x, index in zip(np.asarray(xs), np.asarray(got), strict=True):
+        searched = build(grid, jnp.asarray(x), active, 150, radius + skin)
+        np.testing.assert_array_equal(index, np.asarray(searched.index))
+        ref = brute_force_neighbours(x, np.ones(n, bool), radius)
+        np.testing.assert_array_equal(_within(index, x, radius), ref)
+    # When every member may reuse, all use the carried lists.
+    both = jnp.asarray(np.stack([x0, x0]))
+    with joint_reuse("batch"):
+        kept = jax.vmap(lists, axis_name="batch")(both, caches)
+    np.testing.assert_array_equal(np.asarray(kept[1]), np.asarray(first.index))

@@ -9,6 +9,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._simulate import simulate
+from ..neighbours import joint_reuse
 from ..scenes import observe_probes
 from ._fields import get_field, set_field
 
@@ -60,10 +61,16 @@ def _batched(scene, params, state, n_steps, save_every, observe, axes):
     repeated sweeps reuse it."""
 
     def run(p):
-        tr = simulate(scene, p, state, n_steps, save_every, observe, throw=False)
+        with joint_reuse(_AXIS):
+            tr = simulate(scene, p, state, n_steps, save_every, observe, throw=False)
         return tr.saved, tr.result._value
 
-    return jax.vmap(run, in_axes=(axes,))(params)
+    return jax.vmap(run, in_axes=(axes,), axis_name=_AXIS)(params)
+
+
+# The batch axis: the members decide together whether a step can use the neighbour
+# lists carried from the previous one (`neighbours.joint_reuse`).
+_AXIS = "jaxmps_sweep"
 
 
 def sweep(

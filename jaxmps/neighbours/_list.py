@@ -22,6 +22,9 @@ particles actually in the stencil cells (about 3x the neighbour count with
 reach 2), where fixed per-cell slots tested 9 x the fullest cell's capacity.
 """
 
+import contextlib
+import contextvars
+
 import equinox as eqx
 import jax
 import jax.numpy as jnp
@@ -283,13 +286,18 @@ def reuse_or_build(
     masks). The slot order differs from a new search, so sums over neighbours agree
     to round-off, not bit for bit.
 
-    The choice is a `lax.cond`: under `vmap` it becomes a select that runs the
-    search as well, so batched runs keep the results but not the saving.
+    The choice is a `lax.cond`. Under a plain `vmap` it becomes a select that runs
+    the search as well, so batched runs keep the results but not the saving;
+    inside `joint_reuse` (as `jaxmps.sweep` runs) it stays a branch.
     """
     x = jax.lax.stop_gradient(position)
     moved = jnp.sum((x - cache.position) ** 2, axis=-1)
     moved = jnp.max(jnp.where(active, moved, 0.0))
     reusable = cache.valid & jnp.all(active == cache.active) & (4 * moved < skin**2)
+    axis = _JOINT_AXIS.get()
+    if axis is not None:
+        # One decision for the whole batch (see `joint_reuse`).
+        reusable = jax.lax.pmin(reusable.astype(jnp.int32), axis) > 0
 
     def carried():
         _, outside = cell_coordinates(grid, x)
@@ -305,3 +313,27 @@ def reuse_or_build(
         return build(grid, x, active, max_neighbours, radius + skin)
 
     return jax.lax.cond(reusable, carried, searched)
+
+
+_JOINT_AXIS: contextvars.ContextVar[str | None] = contextvars.ContextVar(
+    "jaxmps_joint_reuse_axis", default=None
+)
+
+
+@contextlib.contextmanager
+def joint_reuse(axis_name: str | None):
+    """While tracing inside it, `reuse_or_build` decides once for a whole `vmap`
+    batch over the named axis: the carried lists are used when every member may
+    use them, else every member searches. The decision then stays a `lax.cond`
+    instead of a select that searches for all members at every step. None: no
+    joint decision (a no-op)."""
+    token = _JOINT_AXIS.set(axis_name)
+    try:
+        yield
+    finally:
+        _JOINT_AXIS.reset(token)
+
+
+def joint_reuse_axis() -> str | None:
+    """The axis name of the enclosing `joint_reuse`, or None."""
+    return _JOINT_AXIS.get()
