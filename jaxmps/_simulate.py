@@ -108,8 +108,9 @@ def simulate(
             Under `vmap`, an error is raised if any batch member fails: prefer
             `throw=False` and inspect `Trajectory.result`.
         checkpoint: rematerialise each save block in the backward pass (True), also
-            each step ("steps": least memory, slower gradient), or nothing (False:
-            most memory, memory ~ n_steps).
+            each step ("steps": least memory, slower gradient; it also searches for
+            neighbours twice per step instead of carrying the lists), or nothing
+            (False: most memory, memory ~ n_steps).
 
     Returns:
         A `Trajectory`.
@@ -220,9 +221,12 @@ def _rollout(scene, params, state, n_steps, save_every, observe, throw, checkpoi
 
     if checkpoint:
         block = jax.checkpoint(block)
-    final, saved = jax.lax.scan(
-        block, _with_neighbours(scene, state), None, length=n_steps // save_every
-    )
+    # Choice: `checkpoint="steps"` (least memory) carries no neighbour lists: the
+    # backward pass would store them with every step's state (~0.3 MB per state of
+    # 2.9k particles: 26 -> 60 MiB at T = 4000, benchmarks/NOTES.md §8).
+    if checkpoint != "steps":
+        state = _with_neighbours(scene, state)
+    final, saved = jax.lax.scan(block, state, None, length=n_steps // save_every)
     final = _without_neighbours(final)
     out = Trajectory(state=final, saved=saved, result=final.result)
     if throw:
