@@ -176,18 +176,18 @@ def test_carried_lists_hold_every_pair_while_moves_stay_below_half_the_skin(rng,
     np.testing.assert_array_equal(_within(reused.index, x1, radius), ref)
 
 
+# Cells of (radius + skin) / 2 for radius 0.15 and skin 0.03 over the unit square.
+_SKIN_GRID = Grid(
+    origin=(0.0, 0.0), cell_size=0.09, shape=(12, 12), candidate_capacity=300, reach=2
+)
+
+
 def test_lists_are_searched_again_after_a_long_move_or_a_new_particle(rng):
     n, radius, skin = 300, 0.15, 0.03
     x0 = rng.uniform(0.1, 0.9, (n, 2))
     active = np.ones(n, bool)
     active[-5:] = False
-    grid = Grid(
-        origin=(0.0, 0.0),
-        cell_size=0.09,
-        shape=(12, 12),
-        candidate_capacity=300,
-        reach=2,
-    )
+    grid = _SKIN_GRID
     first = build(grid, jnp.asarray(x0), jnp.asarray(active), 150, radius + skin)
     cache = NeighbourCache.of(first, jnp.asarray(x0), jnp.asarray(active))
 
@@ -239,13 +239,7 @@ def test_a_batch_decides_jointly_and_keeps_the_branch(rng):
     n, radius, skin = 200, 0.15, 0.03
     x0 = rng.uniform(0.1, 0.9, (n, 2))
     active = jnp.ones(n, bool)
-    grid = Grid(
-        origin=(0.0, 0.0),
-        cell_size=0.09,
-        shape=(12, 12),
-        candidate_capacity=300,
-        reach=2,
-    )
+    grid = _SKIN_GRID
     first = build(grid, jnp.asarray(x0), active, 150, radius + skin)
     cache = NeighbourCache.of(first, jnp.asarray(x0), active)
     # Member 0 stays within half the skin, member 1 moves one particle beyond it.
