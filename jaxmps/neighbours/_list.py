@@ -39,7 +39,8 @@ class Neighbours(eqx.Module):
 
     Attributes:
         index: neighbours j of particle i (j != i), sentinel n in empty slots.
-        count: true number of neighbours within the radius (may exceed the slots).
+        count: true number of neighbours within the search radius (may exceed the
+            slots); for lists carried by `reuse_or_build`, the listed entries.
         neighbour_overflow: some particle had more neighbours than slots.
         cell_overflow: the stencil cells of some particle held more particles
             than `Grid.candidate_capacity`.
