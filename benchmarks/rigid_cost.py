@@ -35,7 +35,7 @@ def without_bodies(case):
 
 def measure(scene, params, state, n_steps):
     t0 = time.perf_counter()
-    compiled = jaxmps.simulate.lower(
+    compiled = jaxmps.lower_simulate(
         scene, params, state, n_steps, n_steps, jaxmps.frame, throw=False
     ).compile()
     compile_s = time.perf_counter() - t0

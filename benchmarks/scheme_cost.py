@@ -46,13 +46,13 @@ def rung_scene(case, discretisation):
         np.asarray(case.state.position)[:m],
         case.scene.spacing,
         (lower, upper),
-        **discretisation,
+        scheme=discretisation,
     )
 
 
 def measure(scene, params, state, n_steps, save_every, observe):
     t0 = time.perf_counter()
-    jaxmps.simulate.lower(
+    jaxmps.lower_simulate(
         scene, params, state, n_steps, save_every, observe, throw=False
     ).compile()
     compile_s = time.perf_counter() - t0

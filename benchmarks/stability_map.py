@@ -130,7 +130,7 @@ def _rollout(case, t_end: float, max_steps: int, saves: int, extra_observe=None)
     timing = {}
     t0 = time.perf_counter()
     try:
-        lowered = jaxmps.simulate.lower(*args, **kwargs)  # runs simulate's checks
+        lowered = jaxmps.lower_simulate(*args, **kwargs)  # runs simulate's checks
     except ValueError as error:  # refused before running: that is the verdict
         return None, {"refused": str(error).split("\n")[0], "n_steps": n}
     compiled = lowered.compile()

@@ -1,7 +1,22 @@
 """jaxmps: a differentiable Moving Particle Semi-implicit (MPS) solver in JAX.
 
-The everyday API is re-exported here; subpackages (`neighbours`, `operators`,
-`fluid`, `geometry`, `io`, `scenes`) are public namespaces for the rest.
+Everyday API, re-exported here:
+
+- building a simulation: `scenes` (built-in cases), `make_scene`, `make_params`,
+  `make_state`, `add_rigid_bodies`, `schemes` (discretisation presets);
+- its three objects: `Scene` (static), `Params` (differentiable), `State` (the
+  scan carry), with `Discretisation` and `Kind`;
+- running it: `step`, `simulate` (and `lower_simulate` to time compilation),
+  `run` (host driver with run files), `with_neighbour_lists` /
+  `without_neighbour_lists` for loops of `step`; `Trajectory`, `Frame`, `frame`,
+  `StepInfo`, `Result`;
+- sweeps and fits: `sweep`, `calibrate`;
+- the two pressure stages `SemiImplicit`, `Explicit` and the gradients
+  `CorrectedGradient`, `StandardGradient`, with the weight `MPSWeight`;
+- the coupling records between fluid and body stages: `Coupling`, `FluidLoad`.
+
+Subpackages are public namespaces for the rest: `neighbours`, `operators`,
+`fluid`, `bodies`, `geometry`, `io`, `scenes`, `calibration`.
 """
 
 from . import bodies as bodies
@@ -17,6 +32,8 @@ from ._build import add_rigid_bodies as add_rigid_bodies
 from ._build import make_params as make_params
 from ._build import make_scene as make_scene
 from ._build import make_state as make_state
+from ._coupling import Coupling as Coupling
+from ._coupling import FluidLoad as FluidLoad
 from ._driver import run as run
 from ._params import Params as Params
 from ._result import Result as Result
@@ -25,15 +42,19 @@ from ._scene import Scene as Scene
 from ._simulate import Frame as Frame
 from ._simulate import Trajectory as Trajectory
 from ._simulate import frame as frame
+from ._simulate import lower_simulate as lower_simulate
 from ._simulate import simulate as simulate
 from ._state import State as State
 from ._step import step as step
+from ._step import with_neighbour_lists as with_neighbour_lists
+from ._step import without_neighbour_lists as without_neighbour_lists
 from ._types import Kind as Kind
 from .calibration import calibrate as calibrate
 from .calibration import sweep as sweep
 from .fluid import Explicit as Explicit
 from .fluid import SemiImplicit as SemiImplicit
 from .operators import CorrectedGradient as CorrectedGradient
+from .operators import Discretisation as Discretisation
 from .operators import MPSWeight as MPSWeight
 from .operators import StandardGradient as StandardGradient
 

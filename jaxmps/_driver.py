@@ -1,5 +1,6 @@
 """`jaxmps.run`: the host driver (chunked `simulate`, progress, HDF5, result check)."""
 
+import contextlib
 import dataclasses
 import math
 import os
@@ -11,13 +12,13 @@ import equinox as eqx
 import jax
 import numpy as np
 
-from ._result import Result
+from ._result import Result, result_code
 from ._simulate import frame, simulate
-from .io._hdf5 import RunWriter, load_state
+from .io import RunWriter, load_state
 
 
 class _Observer(eqx.Module):
-    """Observe a Frame, the step number, the result value and the probes at once."""
+    """Observe a Frame, the step number, the result code and the probes at once."""
 
     probes: tuple
 
@@ -25,7 +26,7 @@ class _Observer(eqx.Module):
         values = {"time": state.time}
         for probe in self.probes:
             values[probe.name] = probe(scene, state)
-        return frame(scene, state), state.step, state.result._value, values
+        return frame(scene, state), state.step, result_code(state.result), values
 
 
 @dataclasses.dataclass
@@ -48,6 +49,16 @@ class RunResult:
     wall_time: float
 
 
+@dataclasses.dataclass(frozen=True)
+class _Plan:
+    """The saves a run makes: `n_saves` saves of `steps_per_save` steps, computed in
+    chunks of `chunk` saves (one compiled program)."""
+
+    steps_per_save: int
+    n_saves: int
+    chunk: int
+
+
 def _largest_divisor(n: int, limit: int) -> int:
     """Largest divisor of `n` that is at most `limit` (at least 1)."""
     for k in range(max(1, min(n, limit)), 0, -1):
@@ -62,6 +73,133 @@ def _host(tree):
 
 def _rows(tree, stop: int):
     return jax.tree_util.tree_map(lambda x: x[:stop], tree)
+
+
+def _plan(
+    dt: float, t_end: float, save_every: float, t_now: float | None, chunk_saves: int
+) -> _Plan:
+    """Steps per save (save_every rounded to whole steps) and the saves to make: to
+    `t_end` from the start, or on restart from `t_now` at this dt (a restart may
+    change dt)."""
+    if not t_end > 0:
+        raise ValueError(f"t_end must be positive, got {t_end}.")
+    if not save_every > 0:
+        raise ValueError(f"save_every must be positive, got {save_every}.")
+    total_steps = max(1, round(t_end / dt))
+    steps_per_save = max(1, min(total_steps, round(save_every / dt)))
+    remaining = total_steps if t_now is None else round((t_end - t_now) / dt)
+    n_saves = math.ceil(max(0, remaining) / steps_per_save)
+    chunk = _largest_divisor(n_saves, int(chunk_saves)) if n_saves else 0
+    return _Plan(steps_per_save=steps_per_save, n_saves=n_saves, chunk=chunk)
+
+
+def _open_writer(out: Path | None, case, append: bool, done: int) -> RunWriter | None:
+    """The run file's writer (None without `out`); when appending, the frames
+    computed after the state a restart continues from are dropped first."""
+    if out is None:
+        return None
+    writer = RunWriter(out, case, append=append)
+    if append:
+        frames = writer.file["frames"]
+        steps = frames["step"][...] if "step" in frames else []
+        writer.truncate(int(np.sum(np.asarray(steps) <= done)))
+    return writer
+
+
+def _write(writer: RunWriter | None, fr, steps, values, state=None) -> None:
+    if writer is None:
+        return
+    writer.append_frames(fr, step=steps)
+    writer.append_probes(values)
+    if state is not None:
+        writer.write_state(state)
+
+
+def _first_frame(observer: _Observer, case, state, writer) -> dict:
+    """Observe and write the initial state; its probe row."""
+    fr, step, _, values = _host(observer(case.scene, state))
+    fr = jax.tree_util.tree_map(lambda x: x[None], fr)
+    values = {k: np.asarray(v)[None] for k, v in values.items()}
+    _write(writer, fr, np.asarray(step)[None], values, state)
+    return values
+
+
+def _chunk(case, observer, state, plan: _Plan, writer, out) -> tuple[Any, dict]:
+    """Run one chunk of saves and write it; the new state and its probe rows.
+
+    Raises:
+        RuntimeError: if the chunk failed, after writing every frame up to the
+            failure and, as `/state`, the state of the last successful save.
+    """
+    trajectory = simulate(
+        case.scene,
+        case.params,
+        state,
+        plan.chunk * plan.steps_per_save,
+        plan.steps_per_save,
+        observe=observer,
+        throw=False,
+    )
+    fr, steps, results, values = _host(trajectory.saved)
+    if int(np.asarray(result_code(trajectory.result))) == 0:
+        _write(writer, fr, steps, values, trajectory.state)
+        return trajectory.state, values
+    bad = np.nonzero(np.asarray(results) != 0)[0]
+    keep = int(bad[0]) + 1 if len(bad) else plan.chunk
+    fr, steps, values = _rows((fr, steps, values), keep)
+    _write(writer, fr, steps, values)
+    good = _last_good(case, observer, state, keep - 1, plan, writer)
+    where = f" Written so far: '{out}'." if out is not None else ""
+    raise RuntimeError(
+        f"The run of '{case.name}' failed between "
+        f"t={float(np.asarray(good.time)):.6g} s and "
+        f"t={float(np.asarray(fr.time)[-1]):.6g} s (by step "
+        f"{int(np.asarray(steps)[-1])}): {Result[trajectory.result]}{where}"
+    )
+
+
+def _last_good(case, observer, state, saves: int, plan: _Plan, writer):
+    """The state of the last successful save of a failed chunk (`saves` saves after
+    `state`), replayed (the rollout is deterministic) and written as `/state`, so
+    that a restart continues from there."""
+    if saves < 1:
+        return state
+    good = simulate(
+        case.scene,
+        case.params,
+        state,
+        saves * plan.steps_per_save,
+        plan.steps_per_save,
+        observe=observer,
+        throw=False,
+    ).state
+    if writer is not None:
+        writer.write_state(good)
+    return good
+
+
+def _progress(show: bool, plan: _Plan, label: str):
+    """A progress bar over the run's steps (shown after 3 s), or a null context."""
+    if not (show and plan.n_saves):
+        return contextlib.nullcontext(None)
+    from tqdm.auto import tqdm
+
+    return tqdm(
+        total=plan.n_saves * plan.steps_per_save,
+        delay=3.0,
+        unit="step",
+        desc=label,
+        leave=False,
+    )
+
+
+def _gather(rows: list[dict]) -> dict:
+    """Probe rows of every chunk, concatenated per probe."""
+    if not rows:
+        return {}
+    return {
+        name: np.concatenate([np.asarray(r[name]) for r in rows]) for name in rows[0]
+    }
 
 
 def run(
@@ -107,133 +245,43 @@ def run(
     """
     started = _time.perf_counter()
     t_end = float(case.t_end if t_end is None else t_end)
-    dt = float(np.asarray(case.params.dt))
-    if not t_end > 0:
-        raise ValueError(f"t_end must be positive, got {t_end}.")
-    total_steps = max(1, round(t_end / dt))
     save_every = t_end / 100 if save_every is None else float(save_every)
-    if not save_every > 0:
-        raise ValueError(f"save_every must be positive, got {save_every}.")
-    steps_per_save = max(1, min(total_steps, round(save_every / dt)))
     out = None if out is None else Path(out)
     if restart and restart_from is None:
         if out is None:
             raise ValueError("restart=True needs `out` (the run file to continue).")
         restart_from = out
     restart_from = None if restart_from is None else Path(restart_from)
-
-    state = case.state
-    append = False
-    if restart_from is not None:
-        state = load_state(restart_from, case)
-        append = out is not None and out.resolve() == restart_from.resolve()
+    state = case.state if restart_from is None else load_state(restart_from, case)
+    append = (
+        restart_from is not None
+        and out is not None
+        and out.resolve() == restart_from.resolve()
+    )
+    t_now = None if restart_from is None else float(np.asarray(state.time))
+    dt = float(np.asarray(case.params.dt))
+    plan = _plan(dt, t_end, save_every, t_now, chunk_saves)
     done = int(np.asarray(state.step))
-    # On restart: the steps left to t_end at this dt (the restart may change dt).
-    t_now = float(np.asarray(state.time))
-    remaining = total_steps if restart_from is None else round((t_end - t_now) / dt)
-    n_saves = math.ceil(max(0, remaining) / steps_per_save)
-    chunk = _largest_divisor(n_saves, int(chunk_saves)) if n_saves else 0
 
     observer = _Observer(probes=tuple(case.probes))
-    writer = None
-    probe_rows: list[dict] = []
-    if out is not None:
-        writer = RunWriter(out, case, append=append)
-        if append:
-            # Drop frames computed after the state we continue from (a failed chunk).
-            steps = (
-                writer.file["frames/step"][...]
-                if "step" in writer.file["frames"]
-                else []
-            )
-            writer.truncate(int(np.sum(np.asarray(steps) <= done)))
+    rows: list[dict] = []
+    writer = _open_writer(out, case, append, done)
     try:
         if not append:
-            fr, step, _, values = _host(observer(case.scene, state))
-            fr = jax.tree_util.tree_map(lambda x: x[None], fr)
-            values = {k: np.asarray(v)[None] for k, v in values.items()}
-            probe_rows.append(values)
-            if writer is not None:
-                writer.append_frames(fr, step=np.asarray(step)[None])
-                writer.append_probes(values)
-                writer.write_state(state)
-        bar = None
-        if progress and n_saves:
-            from tqdm.auto import tqdm
-
-            bar = tqdm(
-                total=n_saves * steps_per_save,
-                initial=0,
-                delay=3.0,
-                unit="step",
-                desc=f"{case.name} (t_end={t_end:g} s)",
-                leave=False,
-            )
-        try:
-            for _ in range(n_saves // chunk if chunk else 0):
-                trajectory = simulate(
-                    case.scene,
-                    case.params,
-                    state,
-                    chunk * steps_per_save,
-                    steps_per_save,
-                    observe=observer,
-                    throw=False,
-                )
-                fr, steps, results, values = _host(trajectory.saved)
-                failed = int(np.asarray(trajectory.result._value)) != 0
-                keep = chunk
-                if failed:
-                    bad = np.nonzero(np.asarray(results) != 0)[0]
-                    keep = int(bad[0]) + 1 if len(bad) else chunk
-                    fr, steps, values = _rows((fr, steps, values), keep)
-                probe_rows.append(values)
-                if writer is not None:
-                    writer.append_frames(fr, step=steps)
-                    writer.append_probes(values)
-                if failed:
-                    if keep > 1:
-                        # The last good state is that of the last successful save:
-                        # replay those saves of the chunk (the rollout is
-                        # deterministic) so that a restart continues from there.
-                        state = simulate(
-                            case.scene,
-                            case.params,
-                            state,
-                            (keep - 1) * steps_per_save,
-                            steps_per_save,
-                            observe=observer,
-                            throw=False,
-                        ).state
-                        if writer is not None:
-                            writer.write_state(state)
-                    t_fail = float(np.asarray(fr.time)[-1])
-                    t_good = float(np.asarray(state.time))
-                    message = Result[trajectory.result]
-                    where = f" Written so far: '{out}'." if out is not None else ""
-                    raise RuntimeError(
-                        f"The run of '{case.name}' failed between t={t_good:.6g} s and "
-                        f"t={t_fail:.6g} s (by step {int(np.asarray(steps)[-1])}): "
-                        f"{message}{where}"
-                    )
-                state = trajectory.state
-                if writer is not None:
-                    writer.write_state(state)
+            rows.append(_first_frame(observer, case, state, writer))
+        label = f"{case.name} (t_end={t_end:g} s)"
+        with _progress(progress, plan, label) as bar:
+            for _ in range(plan.n_saves // plan.chunk if plan.chunk else 0):
+                state, values = _chunk(case, observer, state, plan, writer, out)
+                rows.append(values)
                 if bar is not None:
-                    bar.update(chunk * steps_per_save)
-        finally:
-            if bar is not None:
-                bar.close()
+                    bar.update(plan.chunk * plan.steps_per_save)
     finally:
         if writer is not None:
             writer.close()
-    probes = {}
-    if probe_rows:
-        for name in probe_rows[0]:
-            probes[name] = np.concatenate([np.asarray(r[name]) for r in probe_rows])
     return RunResult(
         state=state,
-        probes=probes,
+        probes=_gather(rows),
         path=out,
         n_steps=int(np.asarray(state.step)) - done,
         wall_time=_time.perf_counter() - started,

@@ -35,6 +35,12 @@ def safe_norm(
     return jnp.where(ok, jnp.sqrt(safe_sq), placeholder)
 
 
+def is_concrete(*values) -> bool:
+    """Whether every value is concrete (not a tracer of `jit`, `vmap` or `grad`), so
+    that it can be checked on the host at trace time."""
+    return not any(isinstance(v, jax.core.Tracer) for v in values)
+
+
 def take_rows(field: Array, index: Array) -> Array:
     """Gather `field[index]` along axis 0, with zeros for the sentinel index n."""
     return jnp.take(field, index, axis=0, mode="fill", fill_value=0)

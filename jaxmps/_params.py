@@ -1,9 +1,10 @@
 """Params: the differentiable, vmappable float parameters of a simulation."""
 
 import equinox as eqx
-import jax
 import jax.numpy as jnp
 from jaxtyping import Array, Float
+
+from ._numerics import is_concrete
 
 
 class InflowParams(eqx.Module):
@@ -56,7 +57,7 @@ class RigidParams(eqx.Module):
     def __check_init__(self):
         for name in ("density", "mu_static", "mu_kinetic"):
             value = getattr(self, name)
-            if isinstance(value, jax.core.Tracer):
+            if not is_concrete(value):
                 continue
             bad = ~(value > 0) if name == "density" else ~(value >= 0)
             if bool(jnp.any(bad)):
@@ -99,14 +100,11 @@ class Params(eqx.Module):
         # Only concrete scalars can be checked; traced or batched values pass through.
         for name in ("density", "dt", "beta", "sound_speed"):
             value = getattr(self, name)
-            if isinstance(value, jax.core.Tracer) or jnp.ndim(value) != 0:
+            if not is_concrete(value) or jnp.ndim(value) != 0:
                 continue
             if not float(value) > 0:
                 raise ValueError(f"Params.{name} must be positive, got {float(value)}.")
-        if (
-            not isinstance(self.viscosity, jax.core.Tracer)
-            and jnp.ndim(self.viscosity) == 0
-        ):
+        if is_concrete(self.viscosity) and jnp.ndim(self.viscosity) == 0:
             if not float(self.viscosity) >= 0:
                 raise ValueError(
                     f"Params.viscosity must be >= 0, got {float(self.viscosity)}."

@@ -2,6 +2,7 @@
 
 import equinox as eqx
 import jax.numpy as jnp
+import numpy as np
 from jaxtyping import Array, ArrayLike, Bool, Float, Int
 
 
@@ -45,6 +46,26 @@ class Result(eqx.Enumeration):
         "exceeded `Scene.viscous_limit`, or (explicit solver) c dt / l0 exceeded "
         "`Explicit.sound_courant`. Reduce `dt` (scene override `dt=...`)."
     )
+
+
+# Equinox's `Enumeration` has no public accessor for an item's integer code, which
+# run files store and batched results are compared by; these two functions are the
+# only places that read its private fields.
+
+
+def result_code(result: Result) -> Int[ArrayLike, ""]:
+    """The integer code of `result` (0 for `Result.successful`); batched results
+    give an array of codes."""
+    return result._value
+
+
+def result_from_code(code: int) -> Result:
+    """The `Result` item with the integer code `code` (host-side)."""
+    for name in Result._name_to_item:
+        item = getattr(Result, name)
+        if int(np.asarray(item._value)) == int(code):
+            return item
+    raise ValueError(f"No jaxmps.Result has the integer code {code}.")
 
 
 def update_result(old: Result, pred: Bool[ArrayLike, ""], item: Result) -> Result:

@@ -3,15 +3,21 @@
 import equinox as eqx
 
 from .bodies import RigidBodies
-from .fluid import AbstractSolver, Inflow, Outflow, PrescribedMotion, SemiImplicit
+from .fluid import (
+    AbstractPressureSolver,
+    CollisionGuard,
+    DynamicStabilisation,
+    FreeSurface,
+    Inflow,
+    Outflow,
+    PrescribedMotion,
+)
 from .neighbours import Grid
 from .operators import (
     AbstractGradient,
     AbstractLaplacian,
     AbstractWeight,
-    CorrectedGradient,
-    MPSWeight,
-    StandardLaplacian,
+    Discretisation,
 )
 
 
@@ -19,15 +25,13 @@ class Scene(eqx.Module):
     """Everything that fixes a shape, a loop bound or a branch. Changing it recompiles.
 
     Build one with `jaxmps.make_scene` rather than by hand: it derives n0, lambda and
-    the capacities from the initial particles.
+    the capacities from the initial particles, and takes the discretisation's models
+    from a `jaxmps.schemes` preset.
 
     Attributes:
-        dim: spatial dimension (2 or 3); the last axis is vertical.
+        discretisation: dim, spacing l0, r_e, n0, lambda and the weight (also
+            readable as `scene.dim`, `scene.spacing`, ...).
         capacity: number of particle slots n (active and pooled).
-        spacing: initial particle spacing l0 [m].
-        r_e: influence radius [m].
-        n0: reference particle number density of the lattice.
-        lam: Laplacian coefficient lambda [m^2].
         grid: neighbour-search cell grid; its box is the domain.
         max_neighbours: neighbour slots per particle.
         neighbour_skin: the lists are searched within r_e + neighbour_skin [m], so
@@ -40,35 +44,60 @@ class Scene(eqx.Module):
             refused at the start and a traced one ends the run with
             `Result.step_too_large`. Measured onset of instability in a 2-D tank:
             1.5 (semi-implicit, MPS weight), 1.3 (explicit, E-MPS weight).
-        weight: weight function of every operator.
         laplacian: Laplacian model of the viscous term and the pressure equation.
         gradient: pressure-gradient model.
-        solver: how the fluid is advanced (`SemiImplicit()` or `Explicit()`).
+        solver: the pressure stage (`SemiImplicit()` or `Explicit()`).
+        surface: free-surface detection, or None (the explicit solver's equation
+            of state needs none).
+        collision: the collision guard on the predicted velocities, or None.
+        stabiliser: dynamic stabilisation after the pressure correction, or None.
         inflow: optional moving inflow boundary fed from the inactive pool.
         outflow: optional outflow plane returning fluid to the pool.
         motion: optional prescribed motion of wall particles (piston, shaken tank).
         rigid: optional rigid bodies (with contact and friction).
     """
 
-    dim: int
+    discretisation: Discretisation
     capacity: int
-    spacing: float
-    r_e: float
-    n0: float
-    lam: float
     grid: Grid
     max_neighbours: int
-    neighbour_skin: float = 0.0
-    courant_limit: float = 0.5
-    viscous_limit: float = 1.0
-    weight: AbstractWeight = MPSWeight()
-    laplacian: AbstractLaplacian = StandardLaplacian()
-    gradient: AbstractGradient = CorrectedGradient(minimum_shift=True)
-    solver: AbstractSolver = SemiImplicit()
+    neighbour_skin: float
+    courant_limit: float
+    viscous_limit: float
+    laplacian: AbstractLaplacian
+    gradient: AbstractGradient
+    solver: AbstractPressureSolver
+    surface: FreeSurface | None
+    collision: CollisionGuard | None
+    stabiliser: DynamicStabilisation | None
     inflow: Inflow | None = None
     outflow: Outflow | None = None
     motion: PrescribedMotion | None = None
     rigid: RigidBodies | None = None
+
+    @property
+    def dim(self) -> int:
+        return self.discretisation.dim
+
+    @property
+    def spacing(self) -> float:
+        return self.discretisation.spacing
+
+    @property
+    def r_e(self) -> float:
+        return self.discretisation.r_e
+
+    @property
+    def n0(self) -> float:
+        return self.discretisation.n0
+
+    @property
+    def lam(self) -> float:
+        return self.discretisation.lam
+
+    @property
+    def weight(self) -> AbstractWeight:
+        return self.discretisation.weight
 
     def max_viscous_dt(self, viscosity: float) -> float:
         """The viscous limit dt <= viscous_limit lambda / (2 d nu) [s]; inf at nu=0."""
@@ -77,8 +106,6 @@ class Scene(eqx.Module):
         return self.viscous_limit * self.lam / (2 * self.dim * viscosity)
 
     def __check_init__(self):
-        if self.dim not in (2, 3):
-            raise ValueError(f"Scene.dim must be 2 or 3, got {self.dim}.")
         if len(self.grid.shape) != self.dim:
             raise ValueError("Scene.grid must have one axis per dimension.")
         if not self.neighbour_skin >= 0:
@@ -92,3 +119,8 @@ class Scene(eqx.Module):
             )
         if self.max_neighbours < 1 or self.capacity < 1:
             raise ValueError("Scene.max_neighbours and Scene.capacity must be >= 1.")
+        if self.solver.needs_surface and self.surface is None:
+            raise ValueError(
+                f"{type(self.solver).__name__} needs a free-surface model: give the "
+                "Scene a `surface=FreeSurface()` (the schemes' presets do)."
+            )

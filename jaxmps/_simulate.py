@@ -1,6 +1,5 @@
 """Rollouts: nested `lax.scan` with checkpointing, an observe function, and `throw`."""
 
-import dataclasses
 import inspect
 from collections.abc import Callable
 from typing import Any, Literal
@@ -9,12 +8,12 @@ import equinox as eqx
 import jax
 from jaxtyping import Array, Float, PyTree
 
+from ._checks import check_compatible
 from ._params import Params
 from ._result import Result
 from ._scene import Scene
 from ._state import State
-from ._step import _step, check_compatible
-from .neighbours import NeighbourCache, joint_reuse, joint_reuse_axis
+from ._step import _step, with_neighbour_lists, without_neighbour_lists
 
 # Rigid-body fields saved with each frame (the run file's /bodies group).
 BODY_FIELDS = (
@@ -82,6 +81,7 @@ def simulate(
     *,
     throw: bool = True,
     checkpoint: bool | Literal["steps"] = True,
+    batch_axis: str | None = None,
 ) -> Trajectory:
     """Run `n_steps` steps, observing the state every `save_every` steps.
 
@@ -111,6 +111,11 @@ def simulate(
             each step ("steps": least memory, slower gradient; it also searches for
             neighbours twice per step instead of carrying the lists), or nothing
             (False: most memory, memory ~ n_steps).
+        batch_axis: when this call runs under `jax.vmap(..., axis_name=name)`,
+            `name`: the members then decide together whether a step can use the
+            neighbour lists carried from the previous one, which keeps that saving
+            (under a plain `vmap` the choice becomes a select that searches for
+            every member). `jaxmps.sweep` does this.
 
     Returns:
         A `Trajectory`.
@@ -134,7 +139,7 @@ def simulate(
         observe,
         throw=throw,
         checkpoint=checkpoint,
-        joint_axis=joint_reuse_axis(),
+        batch_axis=batch_axis,
     )
 
 
@@ -153,10 +158,11 @@ def _check_checkpoint(checkpoint) -> None:
         )
 
 
-def _lower(*args, **kwargs):
-    """`simulate.lower(...)`: the same checks, then the lowered rollout, so that
-    benchmarks can time compilation (`.compile()`) apart from running. Call the
-    compiled program with exactly the same arguments."""
+def lower_simulate(*args, **kwargs) -> jax.stages.Lowered:
+    """The rollout `simulate(*args, **kwargs)` would run, lowered but not compiled,
+    after the same checks: `.compile()` times compilation apart from running (as
+    the benchmarks do). Call the compiled program with exactly the same arguments.
+    """
     bound = inspect.signature(simulate).bind(*args, **kwargs)
     bound.apply_defaults()
     a = bound.arguments
@@ -164,24 +170,6 @@ def _lower(*args, **kwargs):
     _check_steps(a["n_steps"], a["save_every"])
     _check_checkpoint(a["checkpoint"])
     return _simulate.lower(*args, **kwargs)
-
-
-simulate.lower = _lower
-
-
-def _with_neighbours(scene: Scene, state: State) -> State:
-    """The state with an (empty) neighbour cache for the rollout to carry, when the
-    Scene's lists have a skin (`Scene.neighbour_skin`)."""
-    if scene.neighbour_skin <= 0 or state.neighbours is not None:
-        return state
-    cache = NeighbourCache.empty(state.position, state.active, scene.max_neighbours)
-    return dataclasses.replace(state, neighbours=cache)
-
-
-def _without_neighbours(state: State) -> State:
-    if state.neighbours is None:
-        return state
-    return dataclasses.replace(state, neighbours=None)
 
 
 @eqx.filter_jit
@@ -195,21 +183,12 @@ def _simulate(
     *,
     throw=True,
     checkpoint=True,
-    joint_axis=None,
+    batch_axis=None,
 ):
-    # `joint_axis` (static, so part of the compilation cache key): the vmapped axis
-    # over which carried neighbour lists are reused jointly (`neighbours.joint_reuse`).
-    with joint_reuse(joint_axis):
-        return _rollout(
-            scene, params, state, n_steps, save_every, observe, throw, checkpoint
-        )
-
-
-def _rollout(scene, params, state, n_steps, save_every, observe, throw, checkpoint):
     save_every = n_steps if save_every is None else save_every
 
     def one_step(carry: State, _):
-        carry, _ = _step(scene, params, carry)
+        carry, _ = _step(scene, params, carry, batch_axis)
         return carry, None
 
     if checkpoint == "steps":
@@ -217,7 +196,7 @@ def _rollout(scene, params, state, n_steps, save_every, observe, throw, checkpoi
 
     def block(carry: State, _):
         carry, _ = jax.lax.scan(one_step, carry, None, length=save_every)
-        return carry, observe(scene, _without_neighbours(carry))
+        return carry, observe(scene, without_neighbour_lists(carry))
 
     if checkpoint:
         block = jax.checkpoint(block)
@@ -225,9 +204,9 @@ def _rollout(scene, params, state, n_steps, save_every, observe, throw, checkpoi
     # backward pass would store them with every step's state (~0.3 MB per state of
     # 2.9k particles: 26 -> 60 MiB at T = 4000, benchmarks/NOTES.md §8).
     if checkpoint != "steps":
-        state = _with_neighbours(scene, state)
+        state = with_neighbour_lists(scene, state)
     final, saved = jax.lax.scan(block, state, None, length=n_steps // save_every)
-    final = _without_neighbours(final)
+    final = without_neighbour_lists(final)
     out = Trajectory(state=final, saved=saved, result=final.result)
     if throw:
         out = final.result.error_if(out, final.result != Result.successful)

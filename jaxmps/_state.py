@@ -1,11 +1,54 @@
-"""State: the evolving arrays of a simulation, exactly the scan carry."""
+"""State: the evolving arrays of a simulation, exactly the scan carry.
+
+The sub-states of the body models live here too (as the Params of every component
+live in `_params`), so that every stage can take the `State` it advances.
+"""
 
 import equinox as eqx
 from jaxtyping import Array, Bool, Float, Int
 
 from ._result import Result
-from .bodies._state import RigidState
 from .neighbours import NeighbourCache
+
+
+class RigidState(eqx.Module):
+    """Rigid bodies' part of the scan carry. `b` bodies; `q` orientation components
+    (1: an angle in 2-D, 4: a unit quaternion w, x, y, z in 3-D); `a` angular
+    components (1 in 2-D, about z; 3 in 3-D).
+
+    Attributes:
+        body: body index of each particle slot, -1 if it belongs to none, shape (n,).
+        reference: each body particle's offset from its body's centre in the body
+            frame (zero orientation) [m], shape (n, d). Positions are rebuilt from it
+            every step, so a body's shape never drifts.
+        centre: centre of mass [m], shape (b, d).
+        orientation: orientation, shape (b, q).
+        velocity: centre velocity [m/s], shape (b, d).
+        angular_velocity: angular velocity [rad/s], shape (b, a).
+        force: force on the body in the last step, gravity excluded (fluid pressure
+            and viscosity, contact and friction) [N, or N/m in 2-D], shape (b, d).
+        torque: torque about the centre in the last step [N m], shape (b, a).
+        contact_force: part of `force` exerted through pressure by walls (the
+            contact reaction), shape (b, d).
+        impulse: time integral of `force` since the start [N s], shape (b, d).
+        angular_impulse: time integral of `torque` since the start, shape (b, a).
+        friction: friction force of the last step, shape (b, d).
+        sliding: whether the body was in contact and sliding in the last step, (b,).
+    """
+
+    body: Int[Array, " n"]
+    reference: Float[Array, "n d"]
+    centre: Float[Array, "b d"]
+    orientation: Float[Array, "b q"]
+    velocity: Float[Array, "b d"]
+    angular_velocity: Float[Array, "b a"]
+    force: Float[Array, "b d"]
+    torque: Float[Array, "b a"]
+    contact_force: Float[Array, "b d"]
+    impulse: Float[Array, "b d"]
+    angular_impulse: Float[Array, "b a"]
+    friction: Float[Array, "b d"]
+    sliding: Bool[Array, " b"]
 
 
 class State(eqx.Module):
@@ -26,7 +69,8 @@ class State(eqx.Module):
         neighbours: the neighbour lists carried to the next step, or None (a new
             search at the start of every step). `simulate` adds it for the rollout
             (when `Scene.neighbour_skin` > 0) and removes it from what it returns
-            and observes; a State a user builds or receives holds None.
+            and observes; `jaxmps.with_neighbour_lists` adds it for a loop of
+            `jaxmps.step`.
     """
 
     time: Float[Array, ""]

@@ -1,192 +1,304 @@
-"""One time step: the stage pipeline and the result bookkeeping, nothing else."""
+"""One time step: the stage pipeline, in the order of the algorithm.
+
+    stage        what                                       done by
+    boundaries   move walls, feed the inflow                fluid.move_walls,
+                                                            fluid.apply_inflow
+    coupling     what the body models impose on the fluid   <model>.coupling
+    neighbours   lists at r^k (carried, or searched)        neighbours.search
+    predict      u* = u^k + dt (nu lap u + g)               fluid.predict
+    collide      collision guard on u*                      Scene.collision
+    advect       r* = r^k + dt u*                           fluid.advect
+    neighbours   lists at r*                                neighbours.search
+    surface      free-surface flags at r*                   fluid.detect_surface
+    pressure     PPE (semi-implicit) or equation of state   Scene.solver
+    correct      pressure force (body, contact parts),      fluid.pressure_force,
+                 u' = -dt/rho grad P                        fluid.accelerate
+    stabilise    dynamic stabilisation of u'                Scene.stabiliser
+    outflow      return outflowing fluid to the pool        fluid.apply_outflow
+    bodies       each body model advances its bodies        <model>.advance
+    result       stability checks, first failure wins       _record
+
+A stage whose component the Scene does not have (no motion, no bodies, ...) is
+skipped in Python at trace time, so a scene compiles only the physics it contains.
+A new body model is one more field of Scene/Params/State, an `AbstractBodyModel`
+under `bodies/`, and one entry in `_body_models`.
+"""
+
+import dataclasses
 
 import equinox as eqx
 import jax
 import jax.numpy as jnp
-import numpy as np
 
-from . import bodies, fluid
+from . import fluid, neighbours, operators
+from ._checks import check_compatible
+from ._coupling import Coupling
 from ._params import Params
 from ._result import Result, StepInfo, update_result
 from ._scene import Scene
 from ._state import State
 from ._types import MOBILE_KINDS, is_kind
+from .bodies import AbstractBodyModel
 
 
-def check_compatible(scene: Scene, params: Params, state: State) -> None:
-    """Trace-time check that Scene, Params and State belong together (ValueError)."""
-    n, d = state.position.shape[-2:]
-    if (n, d) != (scene.capacity, scene.dim):
-        raise ValueError(
-            f"State holds {n} particles in {d}-D but the Scene expects "
-            f"{scene.capacity} in {scene.dim}-D; build both from the same case."
-        )
-    _check_params_shapes(scene, params)
-    scene.solver.check_params(scene, params)
-    if (scene.inflow is None) != (params.inflow is None):
-        raise ValueError(
-            "Scene.inflow and Params.inflow must both be set or both be None."
-        )
-    if (scene.motion is None) != (params.motion is None):
-        raise ValueError(
-            "Scene.motion and Params.motion must both be set or both be None."
-        )
-    if (scene.rigid is None) != (params.rigid is None) or (scene.rigid is None) != (
-        state.rigid is None
-    ):
-        raise ValueError(
-            "Scene.rigid, Params.rigid and State.rigid must all be set or all be None; "
-            "build them together with `jaxmps.add_rigid_bodies`."
-        )
-    if scene.rigid is not None:
-        b = scene.rigid.count
-        shapes = {
-            "Params.rigid.density": params.rigid.density.shape,
-            "Params.rigid.mu_static": params.rigid.mu_static.shape,
-            "Params.rigid.mu_kinetic": params.rigid.mu_kinetic.shape,
-            "State.rigid.centre": state.rigid.centre.shape[-2:-1],
-        }
-        for name, shape in shapes.items():
-            if shape != (b,):
-                raise ValueError(
-                    f"{name} has shape {shape} but the Scene has {b} rigid bodies "
-                    f"(expected ({b},)). For a batch of values use `jaxmps.sweep` "
-                    "or `jax.vmap` over Params."
-                )
-    _check_viscous_limit(scene, params)
-    _check_finite(state)
+def _body_models(scene: Scene) -> tuple[AbstractBodyModel, ...]:
+    """The body models the Scene has, in the order they advance."""
+    return tuple(model for model in (scene.rigid,) if model is not None)
 
 
-def _check_params_shapes(scene: Scene, params: Params) -> None:
-    """One parameter set: scalars, and gravity with one component per axis (inside
-    `vmap` the shapes seen here are those of one batch member)."""
-    expected = {name: () for name in ("density", "viscosity", "dt", "beta")}
-    expected["sound_speed"] = ()
-    expected["gravity"] = (scene.dim,)
-    for name, shape in expected.items():
-        got = tuple(getattr(params, name).shape)
-        if got != shape:
-            hint = (
-                f"the Scene is {scene.dim}-D"
-                if name == "gravity" and len(got) == 1
-                else "simulate takes one parameter set; for a batch of values use "
-                "`jaxmps.sweep` or `jax.vmap` over Params"
+def _step(
+    scene: Scene, params: Params, state: State, batch_axis: str | None = None
+) -> tuple[State, StepInfo]:
+    disc = scene.discretisation
+    dt = params.dt
+    with jax.named_scope("boundaries"):
+        state, pool_short = _boundaries(scene, params, state)
+    with jax.named_scope("coupling"):
+        coupling = _coupling(scene, params, state)
+    mobile = fluid.is_mobile(state.kind, state.active)
+
+    with jax.named_scope("neighbours"):
+        nbrs_k, pairs_k = _neighbours(
+            scene, state.position, state.active, state.neighbours, batch_axis
+        )
+    with jax.named_scope("predict"):
+        u_star = fluid.predict(disc, scene.laplacian, params, state, pairs_k, coupling)
+    if scene.collision is not None:
+        with jax.named_scope("collide"):
+            u_star = scene.collision(disc, u_star, state.kind, state.active, pairs_k)
+    x_star = fluid.advect(dt, state.position, u_star, mobile)
+
+    with jax.named_scope("neighbours"):
+        nbrs, pairs = _neighbours(scene, x_star, state.active)
+    n_star = operators.number_density(pairs)
+    surface = jnp.zeros_like(state.active)
+    if scene.surface is not None:
+        with jax.named_scope("surface"):
+            surface = fluid.detect_surface(
+                scene.surface,
+                params.beta,
+                disc.n0,
+                n_star,
+                state.kind,
+                state.active,
+                pairs,
             )
-            raise ValueError(
-                f"Params.{name} has shape {got}, expected {shape}: {hint}."
-            )
-
-
-def _check_viscous_limit(scene: Scene, params: Params) -> None:
-    """Refuse concrete (dt, viscosity) beyond `Scene.viscous_limit` (ValueError);
-    traced values are checked every step instead (`Result.step_too_large`)."""
-    values = (params.dt, params.viscosity)
-    if any(isinstance(v, jax.core.Tracer) for v in values):
-        return
-    dt, nu = (np.asarray(v, dtype=float) for v in values)
-    number = np.max(2 * scene.dim * nu * dt / scene.lam)
-    if number > scene.viscous_limit:
-        worst = float(np.max(nu))
-        raise ValueError(
-            f"dt={float(np.max(dt)):.4g} s with viscosity={worst:.4g} m^2/s exceeds "
-            "the viscous stability limit 2 d nu dt / lambda <= "
-            f"{scene.viscous_limit:g} "
-            f"(dt <= {scene.max_viscous_dt(worst):.4g} s at this viscosity and "
-            f"spacing {scene.spacing:g} m). Reduce `dt` or `viscosity`, or raise "
-            "`make_scene(viscous_limit=...)` at your own risk."
+    with jax.named_scope("pressure"):
+        solution = scene.solver(
+            disc,
+            scene.laplacian,
+            scene.grid,
+            params,
+            fluid.PressureInputs(
+                pairs=pairs,
+                n_star=n_star,
+                position=x_star,
+                velocity=u_star,
+                surface=surface,
+                pairs_k=pairs_k,
+                velocity_k=state.velocity,
+                pressure_k=state.pressure,
+                kind=state.kind,
+                active=state.active,
+            ),
         )
-
-
-def _check_finite(state: State) -> None:
-    """Refuse a concrete initial State with non-finite positions or velocities of
-    active particles (inside jit or vmap the run-time `Result.nonfinite_state`
-    applies)."""
-    fields = {"position": state.position, "velocity": state.velocity}
-    if any(isinstance(v, jax.core.Tracer) for v in (*fields.values(), state.active)):
-        return
-    for name, value in fields.items():
-        # Concrete arrays, possibly captured by a user's jit: evaluate eagerly and
-        # bring one scalar to the host unless something is wrong.
-        with jax.ensure_compile_time_eval():
-            finite = jnp.all(jnp.isfinite(value), axis=-1) | ~state.active
-            if bool(jnp.all(finite)):
-                continue
-        bad = np.nonzero(~np.asarray(finite))[-1]
-        raise ValueError(
-            f"State.{name} is not finite for {bad.size} active particle(s) "
-            f"(first indices {bad[:5].tolist()}); fix the initial state, or restart "
-            "from the last good state of a run file (`jaxmps run --restart`)."
+    with jax.named_scope("correct"):
+        load = fluid.pressure_force(
+            scene.gradient,
+            disc,
+            pairs,
+            solution.pressure,
+            state.kind,
+            state.active,
+            coupling,
         )
-
-
-def _step(scene: Scene, params: Params, state: State) -> tuple[State, StepInfo]:
-    pool_short = jnp.asarray(False)
-    if scene.motion is not None:
-        with jax.named_scope("motion"):
-            state = fluid.move_walls(
-                scene, scene.motion, params.motion, params.dt, state
+        density = params.density if coupling is None else coupling.density
+        u_prime = fluid.accelerate(dt, load.gradient, density, mobile)
+    if scene.stabiliser is not None:
+        with jax.named_scope("stabilise"):
+            push = scene.stabiliser(
+                disc,
+                pairs,
+                state.position,
+                x_star + dt * u_prime,
+                state.kind,
+                state.active,
+                dt,
             )
-    if scene.inflow is not None:
-        with jax.named_scope("inflow"):
-            state, pool_short = fluid.apply_inflow(
-                scene, scene.inflow, params.inflow, params.dt, state
-            )
-    with jax.named_scope("fluid"):
-        new, info = scene.solver.advance(scene, params, state)
+            u_prime = u_prime + dt * push
+    new = dataclasses.replace(
+        state,
+        time=state.time + dt,
+        step=state.step + 1,
+        position=x_star + dt * u_prime,
+        velocity=u_star + u_prime,
+        pressure=solution.pressure,
+        neighbours=_carried(state, nbrs, x_star),
+    )
     if scene.outflow is not None:
         with jax.named_scope("outflow"):
-            new = fluid.apply_outflow(scene, scene.outflow, new)
-    if scene.rigid is not None:
-        with jax.named_scope("rigid"):
-            new = bodies.advance_bodies(scene, params, new)
-    # Future components (elastic update, DEM) slot in here, each as
-    # `if scene.<component> is not None: new = <module>.<stage>(...)`.
+            new = fluid.apply_outflow(scene.outflow, scene.grid, new)
+    for model in _body_models(scene):
+        with jax.named_scope(model.name):
+            new = model.advance(disc, params, new, load)
+
     with jax.named_scope("result"):
-        mobile = jnp.logical_and(new.active, is_kind(new.kind, MOBILE_KINDS))
-        speed = jnp.sqrt(jnp.sum(new.velocity**2, axis=-1))
-        courant = jnp.max(jnp.where(mobile, speed, 0.0)) * params.dt / scene.spacing
-        viscous = 2 * scene.dim * params.viscosity * params.dt / scene.lam
-        finite = jnp.all(
-            jnp.where(
-                new.active,
-                jnp.all(jnp.isfinite(new.position), axis=-1)
-                & jnp.all(jnp.isfinite(new.velocity), axis=-1)
-                & jnp.isfinite(new.pressure),
-                True,
-            )
-        )
-        result = new.result
-        result = update_result(result, info.cell_overflow, Result.cell_overflow)
-        result = update_result(
-            result, info.neighbour_overflow, Result.neighbour_overflow
-        )
-        result = update_result(result, pool_short, Result.pool_exhausted)
-        result = update_result(result, info.outside, Result.left_domain)
-        result = update_result(
-            result,
-            (courant > scene.courant_limit)
-            | (viscous > scene.viscous_limit)
-            | info.unstable,
-            Result.step_too_large,
-        )
-        result = update_result(
-            result, ~info.pressure_converged, Result.pressure_not_converged
-        )
-        result = update_result(result, ~finite, Result.nonfinite_state)
-    return eqx.tree_at(lambda s: s.result, new, result), info
+        info = _info(solution, nbrs_k, nbrs)
+        new = _record(scene, params, new, info, pool_short)
+    return new, info
 
 
-def step(scene: Scene, params: Params, state: State) -> tuple[State, StepInfo]:
+def _boundaries(scene: Scene, params: Params, state: State):
+    """Moving walls and the inflow: the state and whether the inflow's pool ran
+    short."""
+    pool_short = jnp.asarray(False)
+    if scene.motion is not None:
+        state = fluid.move_walls(scene.motion, params.motion, params.dt, state)
+    if scene.inflow is not None:
+        state, pool_short = fluid.apply_inflow(
+            scene.discretisation, scene.inflow, params.inflow, params.dt, state
+        )
+    return state, pool_short
+
+
+def _coupling(scene: Scene, params: Params, state: State) -> Coupling | None:
+    """What the body models impose on the fluid (None in a scene without bodies).
+    Each model owns its particles; their records are merged slot by slot."""
+    parts = [model.coupling(params, state) for model in _body_models(scene)]
+    if not parts:
+        return None
+    merged = parts[0]
+    for part in parts[1:]:
+        merged = Coupling(
+            density=jnp.where(part.owned, part.density, merged.density),
+            owner=jnp.where(part.owned, part.owner, merged.owner),
+        )
+    return merged
+
+
+def _neighbours(scene: Scene, position, active, cache=None, batch_axis=None):
+    """Neighbour lists at `position` (the carried ones while valid) and their pair
+    geometry."""
+    disc = scene.discretisation
+    nbrs = neighbours.search(
+        scene.grid,
+        position,
+        active,
+        scene.max_neighbours,
+        disc.r_e,
+        scene.neighbour_skin,
+        cache,
+        batch_axis,
+    )
+    return nbrs, operators.make_pairs(nbrs.index, position, disc.weight, disc.r_e)
+
+
+def _carried(state: State, nbrs: neighbours.Neighbours, position):
+    """The lists the next step receives: those of the predicted positions, when the
+    state carries lists at all."""
+    if state.neighbours is None:
+        return None
+    return neighbours.NeighbourCache.of(nbrs, position, state.active)
+
+
+def _info(
+    solution: fluid.PressureSolution,
+    nbrs_k: neighbours.Neighbours,
+    nbrs: neighbours.Neighbours,
+) -> StepInfo:
+    """The step's diagnostics from its pressure stage and its two searches."""
+    return StepInfo(
+        pressure_iterations=solution.iterations,
+        pressure_residual=solution.residual,
+        pressure_converged=solution.converged,
+        neighbour_overflow=nbrs_k.neighbour_overflow | nbrs.neighbour_overflow,
+        cell_overflow=nbrs_k.cell_overflow | nbrs.cell_overflow,
+        outside=jnp.any(nbrs_k.outside) | jnp.any(nbrs.outside),
+        surface_count=jnp.sum(solution.free, dtype=jnp.int32),
+        unstable=solution.unstable,
+    )
+
+
+def _record(
+    scene: Scene, params: Params, new: State, info: StepInfo, pool_short
+) -> State:
+    """Record the step's first failure in the state's result: overflows, an empty
+    pool, a particle out of the domain, a step beyond a stability limit, an
+    unconverged pressure solve, a non-finite state."""
+    mobile = jnp.logical_and(new.active, is_kind(new.kind, MOBILE_KINDS))
+    speed = jnp.sqrt(jnp.sum(new.velocity**2, axis=-1))
+    courant = jnp.max(jnp.where(mobile, speed, 0.0)) * params.dt / scene.spacing
+    viscous = 2 * scene.dim * params.viscosity * params.dt / scene.lam
+    finite = jnp.all(
+        jnp.where(
+            new.active,
+            jnp.all(jnp.isfinite(new.position), axis=-1)
+            & jnp.all(jnp.isfinite(new.velocity), axis=-1)
+            & jnp.isfinite(new.pressure),
+            True,
+        )
+    )
+    result = new.result
+    result = update_result(result, info.cell_overflow, Result.cell_overflow)
+    result = update_result(result, info.neighbour_overflow, Result.neighbour_overflow)
+    result = update_result(result, pool_short, Result.pool_exhausted)
+    result = update_result(result, info.outside, Result.left_domain)
+    result = update_result(
+        result,
+        (courant > scene.courant_limit)
+        | (viscous > scene.viscous_limit)
+        | info.unstable,
+        Result.step_too_large,
+    )
+    result = update_result(
+        result, ~info.pressure_converged, Result.pressure_not_converged
+    )
+    result = update_result(result, ~finite, Result.nonfinite_state)
+    return eqx.tree_at(lambda s: s.result, new, result)
+
+
+def step(
+    scene: Scene, params: Params, state: State, *, batch_axis: str | None = None
+) -> tuple[State, StepInfo]:
     """Advance `state` by one time step `params.dt`.
 
     Failures are recorded in the returned `state.result` (first failure wins); this
-    function never raises at run time. Use `simulate` for rollouts.
+    function never raises at run time. Use `simulate` for rollouts. For a loop of
+    steps of your own, start from `with_neighbour_lists(scene, state)`: the state
+    then carries each step's neighbour lists to the next, which searches once per
+    step instead of twice (as `simulate` does).
+
+    Args:
+        scene, params, state: the simulation.
+        batch_axis: when this call runs under `jax.vmap(..., axis_name=name)`,
+            `name`: the batch then decides jointly whether the carried neighbour
+            lists can be reused (`neighbours.reuse_or_build`).
 
     Returns:
         The new state and this step's diagnostics.
     """
     check_compatible(scene, params, state)
-    return _jit_step(scene, params, state)
+    return _jit_step(scene, params, state, batch_axis)
 
 
 _jit_step = eqx.filter_jit(_step)
+
+
+def with_neighbour_lists(scene: Scene, state: State) -> State:
+    """`state` carrying (empty) neighbour lists, so that each `step` passes its
+    lists on to the next (a new search only when a particle has moved by half
+    `Scene.neighbour_skin`). Unchanged if it carries lists already or the Scene
+    has no skin."""
+    if scene.neighbour_skin <= 0 or state.neighbours is not None:
+        return state
+    cache = neighbours.NeighbourCache.empty(
+        state.position, state.active, scene.max_neighbours
+    )
+    return dataclasses.replace(state, neighbours=cache)
+
+
+def without_neighbour_lists(state: State) -> State:
+    """`state` without carried neighbour lists (as `simulate` returns states)."""
+    if state.neighbours is None:
+        return state
+    return dataclasses.replace(state, neighbours=None)

@@ -153,11 +153,10 @@ def _cmd_info(args) -> int:
         count = data.bodies["centre"].shape[1]
         print(f"  bodies   {count} rigid, per frame: {', '.join(sorted(data.bodies))}")
     if data.state:
-        from ._result import Result
-        from .io._hdf5 import result_from_value
+        from ._result import Result, result_from_code
 
         value = int(data.state["result"])
-        status = "successful" if value == 0 else Result[result_from_value(value)]
+        status = "successful" if value == 0 else Result[result_from_code(value)]
         print(
             f"  state    t = {float(data.state['time']):.4g} s, step "
             f"{int(data.state['step'])}, result: {status}"

@@ -1,47 +1,129 @@
-"""Named discretisation presets: keyword arguments of `make_scene`.
+"""Discretisation schemes: the `Scheme` record and its named presets.
 
-Each correction of the high-accuracy scheme is a strategy object in its own slot
-(weight, Laplacian, gradient, solver source, solver stabiliser), so a preset is
-only a choice of objects, and the ablation ladder of seed 001 is a set of toggles:
+A scheme is the set of models a Scene is discretised with (influence radius,
+weight, Laplacian, gradient, pressure stage, free surface, collision guard,
+stabiliser). `make_scene` takes one (`scheme=`, default `standard()`); this module
+is the only place where the defaults are written. Each correction of the
+high-accuracy scheme is a strategy object in its own slot, so a preset is only a
+choice of objects, and the ablation ladder of seed 001 is a set of toggles:
 
-    scene = jaxmps.make_scene(position, l0, domain, **jaxmps.schemes.high_accuracy())
-    scene = jaxmps.make_scene(..., **jaxmps.schemes.high_accuracy(wendland=False))
+    ha = jaxmps.schemes.high_accuracy()
+    scene = jaxmps.make_scene(position, l0, domain, scheme=ha)
+    scene = jaxmps.make_scene(..., scheme=schemes.high_accuracy(wendland=False))
 """
 
 import dataclasses
-from typing import Any
+
+import equinox as eqx
 
 from .fluid import (
+    AbstractPressureSolver,
+    CollisionGuard,
     DensitySource,
     DynamicCompensation,
     DynamicStabilisation,
+    Explicit,
+    FreeSurface,
     HigherOrderSource,
     SemiImplicit,
 )
 from .operators import (
+    AbstractGradient,
+    AbstractLaplacian,
+    AbstractWeight,
     CorrectedGradient,
+    EMPSGradientWeight,
+    EMPSWeight,
     HigherOrderLaplacian,
     MinimumPressureGradient,
     MPSWeight,
     StandardLaplacian,
+    SymmetricGradient,
     WendlandWeight,
 )
 
 
-def standard(solver: SemiImplicit | None = None) -> dict[str, Any]:
+class Scheme(eqx.Module):
+    """The models a Scene is discretised with.
+
+    Attributes:
+        r_e: influence radius in units of the spacing l0 (2.1 in seed 000, 2.4 in
+            seed 001).
+        weight: the weight function of every operator.
+        laplacian: Laplacian of the viscous term and the pressure equation.
+        gradient: the pressure-gradient model.
+        solver: the pressure stage (`SemiImplicit` or `Explicit`).
+        surface: free-surface detection, or None.
+        collision: collision guard on the predicted velocities, or None.
+        stabiliser: dynamic stabilisation after the correction, or None.
+    """
+
+    r_e: float
+    weight: AbstractWeight
+    laplacian: AbstractLaplacian
+    gradient: AbstractGradient
+    solver: AbstractPressureSolver
+    surface: FreeSurface | None
+    collision: CollisionGuard | None
+    stabiliser: DynamicStabilisation | None
+
+    def __check_init__(self):
+        if not self.r_e > 1:
+            raise ValueError(
+                f"Scheme.r_e must be > 1 (in units of l0), got {self.r_e}."
+            )
+        if self.solver.needs_surface and self.surface is None:
+            raise ValueError(
+                f"{type(self.solver).__name__} needs a free-surface model "
+                "(`surface=FreeSurface()`)."
+            )
+
+    def replace(self, **changes) -> "Scheme":
+        """This scheme with some models replaced (keyword per attribute)."""
+        unknown = set(changes) - {f.name for f in dataclasses.fields(self)}
+        if unknown:
+            raise ValueError(
+                f"Scheme has no {sorted(unknown)}; its models are "
+                f"{[f.name for f in dataclasses.fields(self)]}."
+            )
+        return dataclasses.replace(self, **changes)
+
+
+def standard(solver: SemiImplicit | None = None) -> Scheme:
     """The default scheme (seed 000): standard weight r_e/r - 1 at r_e = 2.1 l0, the
     lambda Laplacian, the corrected gradient with the minimum-pressure shift, the
-    mixed source, negative pressures clamped and the collision guard on."""
-    return dict(
+    mixed source, negative pressures clamped, the beta free-surface rule with the
+    isolated-surface filter and the collision guard."""
+    return Scheme(
         r_e=2.1,
         weight=MPSWeight(),
         laplacian=StandardLaplacian(),
         gradient=CorrectedGradient(minimum_shift=True),
         solver=SemiImplicit() if solver is None else solver,
+        surface=FreeSurface(),
+        collision=CollisionGuard(),
+        stabiliser=None,
     )
 
 
-def standard_mps(solver: SemiImplicit | None = None) -> dict[str, Any]:
+def explicit(solver: Explicit | None = None) -> Scheme:
+    """Explicit MPS (E-MPS, seed 002) at r_e = 2.1 l0: the equation of state, the
+    E-MPS weight w = r_e/r + r/r_e - 2 of number density and Laplacian, the
+    symmetric gradient with its own weight r_e/r - r/r_e; no surface detection (the
+    equation of state sets P = 0 where n* <= n0) and no collision guard."""
+    return Scheme(
+        r_e=2.1,
+        weight=EMPSWeight(),
+        laplacian=StandardLaplacian(),
+        gradient=SymmetricGradient(weight=EMPSGradientWeight()),
+        solver=Explicit() if solver is None else solver,
+        surface=None,
+        collision=None,
+        stabiliser=None,
+    )
+
+
+def standard_mps(solver: SemiImplicit | None = None) -> Scheme:
     """The standard MPS of seed 001 §2 (Koshizuka's textbook), the baseline the
     high-accuracy scheme is measured against: weight r_e/r - 1 at r_e = 2.4 l0, the
     lambda Laplacian, the source rho0/dt^2 (n0 - n*)/n0 as printed, Koshizuka's
@@ -51,13 +133,11 @@ def standard_mps(solver: SemiImplicit | None = None) -> dict[str, Any]:
     noise in the 0.2 m hydrostatic tank at l0 = 1 cm, dt = 1 ms is ~125 % of rho g H
     (benchmarks/results/scheme_cost_cpu.md), against ~1 % for `standard`.
     """
-    # Choice: the collision guard of `SemiImplicit` stays on (seed 001 §2 names
-    # none). Without it this scheme blows up within 1 s of that tank.
+    # Choice: the collision guard stays on (seed 001 §2 names none). Without it this
+    # scheme blows up within 1 s of that tank.
     base = SemiImplicit() if solver is None else solver
-    return dict(
+    return standard().replace(
         r_e=2.4,
-        weight=MPSWeight(),
-        laplacian=StandardLaplacian(),
         gradient=MinimumPressureGradient(),
         solver=dataclasses.replace(
             base, source=DensitySource(), clamp_negative_pressure=True
@@ -75,7 +155,7 @@ def high_accuracy(
     wendland: bool = True,
     normalised: bool = False,
     r_e: float = 2.4,
-) -> dict[str, Any]:
+) -> Scheme:
     """MPS-HS-HL-ECS-GC-DS-WEND of seed 001 (r_e = 2.4 l0), with each correction a
     toggle (all on: the seed's combination; all off: `standard` at r_e):
 
@@ -89,32 +169,31 @@ def high_accuracy(
       in `HigherOrderLaplacian`); False (default) keeps the printed scales.
 
     `solver` supplies the remaining solver settings (tolerance, iteration cap,
-    free surface); its source, stabiliser, clamping and guard are replaced.
+    preconditioner); its source and clamping are replaced.
     """
     if ecs and not hs:
         raise ValueError("ecs=True needs hs=True (the ECS term is part of HS).")
-    base = SemiImplicit() if solver is None else solver
-    changes: dict[str, Any] = {}
+    scheme = standard(solver).replace(r_e=r_e)
     if hs:
-        changes["source"] = HigherOrderSource(
+        source = HigherOrderSource(
             compensation=DynamicCompensation() if ecs else None,
             normalised=normalised,
         )
-    if gc_ds:
-        changes.update(
-            stabiliser=DynamicStabilisation(),
-            clamp_negative_pressure=False,
-            collision_distance=None,
+        scheme = scheme.replace(
+            solver=dataclasses.replace(scheme.solver, source=source)
         )
-    return dict(
-        r_e=r_e,
-        weight=WendlandWeight() if wendland else MPSWeight(),
-        laplacian=HigherOrderLaplacian(normalised=normalised)
-        if hl
-        else StandardLaplacian(),
-        gradient=CorrectedGradient(minimum_shift=not gc_ds),
-        solver=dataclasses.replace(base, **changes),
-    )
+    if hl:
+        scheme = scheme.replace(laplacian=HigherOrderLaplacian(normalised=normalised))
+    if gc_ds:
+        scheme = scheme.replace(
+            gradient=CorrectedGradient(minimum_shift=False),
+            solver=dataclasses.replace(scheme.solver, clamp_negative_pressure=False),
+            collision=None,
+            stabiliser=DynamicStabilisation(),
+        )
+    if wendland:
+        scheme = scheme.replace(weight=WendlandWeight())
+    return scheme
 
 
 # The cumulative ablation ladder of seed 001 §3 (MPS -> ... -> full scheme).

@@ -21,7 +21,18 @@ def listed(index, n):
     return out
 
 
-def small_tank(width=0.1, depth=0.1, l0=0.01, **scene_kw):
+def scheme_of(solver=None, r_e=None, weight=None):
+    """The standard scheme (the explicit one for an `Explicit` solver) with its
+    solver, influence radius or weight replaced."""
+    explicit = isinstance(solver, jaxmps.Explicit)
+    scheme = (
+        jaxmps.schemes.explicit(solver) if explicit else jaxmps.schemes.standard(solver)
+    )
+    changes = {"r_e": r_e, "weight": weight}
+    return scheme.replace(**{k: v for k, v in changes.items() if v is not None})
+
+
+def small_tank(width=0.1, depth=0.1, l0=0.01, solver=None, **scene_kw):
     """A 2-D water block in an open tank: (scene, params, state)."""
     fluid = block([0, 0], [width, depth], l0)
     walls, wk = tank([0, 0], [width, depth + 3 * l0], l0)
@@ -29,13 +40,17 @@ def small_tank(width=0.1, depth=0.1, l0=0.01, **scene_kw):
     kind = np.concatenate([np.zeros(len(fluid), np.int32), wk])
     lower = np.array([-5 * l0, -5 * l0])
     upper = np.array([width + 5 * l0, depth + 10 * l0])
-    scene = jaxmps.make_scene(pos, l0, (lower, upper), **scene_kw)
+    scene = jaxmps.make_scene(
+        pos, l0, (lower, upper), scheme=scheme_of(solver), **scene_kw
+    )
     params = jaxmps.make_params(2, dt=1e-3)
     state = jaxmps.make_state(scene, pos, kind)
     return scene, params, state
 
 
-def lattice_pairs(dim, l0=1.0, size=9, jitter=0.0, rng=None, **scene_kw):
+def lattice_pairs(
+    dim, l0=1.0, size=9, jitter=0.0, rng=None, r_e=None, weight=None, **scene_kw
+):
     """A size^dim lattice (optionally jittered by +-jitter l0) and its pairs:
     (scene, x, pairs, interior), `interior` marking points at least 3 l0 from the
     edge (a full neighbourhood for r_e <= 3 l0)."""
@@ -49,7 +64,8 @@ def lattice_pairs(dim, l0=1.0, size=9, jitter=0.0, rng=None, **scene_kw):
     if jitter:
         x = x + rng.uniform(-jitter, jitter, x.shape) * l0
     domain = (np.full(dim, -3 * l0), np.full(dim, (size + 3) * l0))
-    scene = jaxmps.make_scene(x, l0, domain, **scene_kw)
+    scheme = scheme_of(r_e=r_e, weight=weight)
+    scene = jaxmps.make_scene(x, l0, domain, scheme=scheme, **scene_kw)
     search = jax.jit(build, static_argnums=(0, 3, 4))
     nbrs = search(
         scene.grid,

@@ -73,7 +73,7 @@ def test_past_the_viscous_limit_is_refused_or_reported():
 
 def test_explicit_dt_past_the_sound_limit_is_refused_or_reported():
     case = _tank(solver="explicit")
-    limit = case.scene.solver.max_dt(case.scene, float(case.params.sound_speed))
+    limit = case.scene.solver.max_dt(case.scene.spacing, float(case.params.sound_speed))
     params = eqx.tree_at(lambda p: p.dt, case.params, jnp.asarray(1.05 * limit))
     with pytest.raises(ValueError, match=r"explicit \(E-MPS\) stability limit"):
         jaxmps.simulate(case.scene, params, case.state, 2, 2)

@@ -46,7 +46,7 @@ def _regular_lattice(dim, weight, l0, size, r_e):
 
 def _as_jax(lattice):
     scene, x, pairs, interior = lattice
-    return scene, jnp.asarray(x), pairs, interior
+    return scene.discretisation, jnp.asarray(x), pairs, interior
 
 
 def test_wendland_and_standard_constants_at_r_e_2_4():
@@ -84,24 +84,24 @@ def test_higher_order_laplacian_on_quadratics(dim):
     """Printed HL: |r|^2 -> 12.17 with Wendland in 2-D (digest T7, a value
     regression); normalised HL exact for any quadratic on the lattice (the
     standard Laplacian's consistency), zero on linear fields."""
-    scene, x, pairs, interior = _lattice(
+    disc, x, pairs, interior = _lattice(
         dim, WendlandWeight(), size=9 if dim == 2 else 8
     )
     c = np.array([0.7, -0.2, 1.3])[:dim]
     quad = x**2 @ jnp.asarray(c) + 0.4 * x[:, 0] * x[:, 1] + x @ jnp.ones(dim)
     r2 = jnp.sum(x**2, axis=1)
-    printed = HigherOrderLaplacian(normalised=False)(pairs, r2, scene)
+    printed = HigherOrderLaplacian(normalised=False)(pairs, r2, disc)
     normal = HigherOrderLaplacian(normalised=True)
     if dim == 2:
         np.testing.assert_allclose(printed[interior], 12.1737, rtol=1e-4)
-    np.testing.assert_allclose(normal(pairs, r2, scene)[interior], 2 * dim, rtol=1e-10)
+    np.testing.assert_allclose(normal(pairs, r2, disc)[interior], 2 * dim, rtol=1e-10)
     np.testing.assert_allclose(
-        normal(pairs, quad, scene)[interior], 2 * c.sum(), rtol=1e-10
+        normal(pairs, quad, disc)[interior], 2 * c.sum(), rtol=1e-10
     )
     linear = x @ jnp.arange(1.0, dim + 1)
-    assert np.abs(np.asarray(normal(pairs, linear, scene))[interior]).max() < 1e-9
+    assert np.abs(np.asarray(normal(pairs, linear, disc))[interior]).max() < 1e-9
     # Same consistency as the standard Laplacian; both give a vector field per axis.
-    std = StandardLaplacian()(pairs, jnp.stack([quad, r2], -1), scene)
+    std = StandardLaplacian()(pairs, jnp.stack([quad, r2], -1), disc)
     np.testing.assert_allclose(std[interior, 1], 2 * dim, rtol=1e-10)
 
 
@@ -109,12 +109,12 @@ def test_higher_order_laplacian_on_quadratics(dim):
 def test_density_rate_is_the_time_derivative_of_number_density(weight, rng):
     """Digest T6: sum_j w'(r)(r.u)/r equals dn/dt for a random velocity field
     (central difference of n along the motion)."""
-    scene, x, pairs, interior = _lattice(2, weight, jitter=0.15, rng=rng)
+    disc, x, pairs, interior = _lattice(2, weight, jitter=0.15, rng=rng)
     u = jnp.asarray(rng.normal(size=x.shape))
-    rate = np.asarray(density_rate(scene, pairs, u))
+    rate = np.asarray(density_rate(disc, pairs, u))
     h = 1e-7
     n = [
-        number_density(make_pairs(pairs.index, x + s * h * u, weight, scene.r_e))
+        number_density(make_pairs(pairs.index, x + s * h * u, weight, disc.r_e))
         for s in (1, -1)
     ]
     fd = np.asarray((n[0] - n[1]) / (2 * h))
@@ -130,7 +130,7 @@ def test_dynamic_compensation_pushes_against_compression():
     """Compressed (n > n0) and still compressing: S_ECS > 0, which lowers the
     source and raises the pressure; expanding under compression: the two terms
     oppose."""
-    scene, x, pairs, interior = _lattice(2, WendlandWeight())
+    disc, x, pairs, interior = _lattice(2, WendlandWeight())
     inward = -(x - x.mean(axis=0, keepdims=True))
     inputs = jaxmps.fluid.SourceInputs(
         pairs=pairs,
@@ -142,10 +142,10 @@ def test_dynamic_compensation_pushes_against_compression():
         density=jnp.asarray(1000.0),
         dt=jnp.asarray(1e-3),
     )
-    s = np.asarray(DynamicCompensation()(scene, inputs))
+    s = np.asarray(DynamicCompensation()(disc, inputs))
     assert np.all(s[interior] > 0)
     expanding = eqx.tree_at(lambda s: s.velocity_k, inputs, -inward)
-    s2 = np.asarray(DynamicCompensation()(scene, expanding))
+    s2 = np.asarray(DynamicCompensation()(disc, expanding))
     np.testing.assert_allclose(s2[interior], 0.0, atol=1e-9 * np.abs(s).max())
 
 
@@ -156,49 +156,51 @@ def test_dynamic_stabilisation_restores_point_contact_and_momentum():
     l0, dt = 0.01, 1e-3
     x_k = jnp.array([[0.0, 0.0], [l0, 0.0]])
     predicted = jnp.array([[0.25 * l0, 0.0], [0.75 * l0, 0.0]])
-    scene, _, _, _ = _lattice(2, WendlandWeight())
-    pairs = make_pairs(jnp.array([[1], [0]]), predicted, scene.weight, scene.r_e)
+    disc, _, _, _ = _lattice(2, WendlandWeight())
+    pairs = make_pairs(jnp.array([[1], [0]]), predicted, disc.weight, disc.r_e)
     ds = DynamicStabilisation(weighted=False)
     fluid = jnp.zeros(2, jnp.int32)
-    acc = ds(scene, pairs, x_k, predicted, fluid, jnp.ones(2, bool), jnp.asarray(dt))
+    acc = ds(disc, pairs, x_k, predicted, fluid, jnp.ones(2, bool), jnp.asarray(dt))
     after = predicted + dt**2 * acc
     assert float(jnp.linalg.norm(after[1] - after[0])) == pytest.approx(0.9 * l0)
     np.testing.assert_allclose(acc.sum(axis=0), 0.0, atol=1e-9)
     wall = fluid.at[1].set(int(jaxmps.Kind.WALL))
-    acc = ds(scene, pairs, x_k, predicted, wall, jnp.ones(2, bool), jnp.asarray(dt))
+    acc = ds(disc, pairs, x_k, predicted, wall, jnp.ones(2, bool), jnp.asarray(dt))
     after = predicted + dt**2 * acc
     assert float(acc[1, 0]) == 0.0
     assert float(after[1, 0] - after[0, 0]) == pytest.approx(0.9 * l0)
     # Pairs farther than alpha l0 are left alone; weighted DS scales by w / n0.
     far = jnp.array([[0.0, 0.0], [0.95 * l0, 0.0]])
-    pf = make_pairs(jnp.array([[1], [0]]), far, scene.weight, scene.r_e)
+    pf = make_pairs(jnp.array([[1], [0]]), far, disc.weight, disc.r_e)
     assert np.all(
-        ds(scene, pf, x_k, far, fluid, jnp.ones(2, bool), jnp.asarray(dt)) == 0.0
+        ds(disc, pf, x_k, far, fluid, jnp.ones(2, bool), jnp.asarray(dt)) == 0.0
     )
     weighted = DynamicStabilisation()(
-        scene, pairs, x_k, predicted, fluid, jnp.ones(2, bool), jnp.asarray(dt)
+        disc, pairs, x_k, predicted, fluid, jnp.ones(2, bool), jnp.asarray(dt)
     )
-    ratio = float(pairs.weight[0, 0]) / scene.n0
+    ratio = float(pairs.weight[0, 0]) / disc.n0
     unweighted = ds(
-        scene, pairs, x_k, predicted, fluid, jnp.ones(2, bool), jnp.asarray(dt)
+        disc, pairs, x_k, predicted, fluid, jnp.ones(2, bool), jnp.asarray(dt)
     )
     np.testing.assert_allclose(weighted, ratio * unweighted, rtol=1e-12)
 
 
 def test_presets_and_their_errors():
     ha = jaxmps.schemes.high_accuracy()
-    assert ha["r_e"] == 2.4 and isinstance(ha["weight"], WendlandWeight)
-    assert ha["solver"].stabiliser is not None
-    assert not ha["solver"].clamp_negative_pressure
-    assert not ha["gradient"].minimum_shift
+    assert ha.r_e == 2.4 and isinstance(ha.weight, WendlandWeight)
+    assert ha.stabiliser is not None and ha.collision is None
+    assert not ha.solver.clamp_negative_pressure
+    assert not ha.gradient.minimum_shift
     off = jaxmps.schemes.high_accuracy(**jaxmps.schemes.LADDER["standard"])
     std = jaxmps.schemes.standard()
-    assert {k: v for k, v in off.items() if k != "r_e"} == {
-        k: v for k, v in std.items() if k != "r_e"
-    }
+    assert off.replace(r_e=std.r_e) == std
     mps = jaxmps.schemes.standard_mps()
-    assert mps["r_e"] == 2.4 and isinstance(mps["gradient"], MinimumPressureGradient)
-    assert isinstance(mps["solver"].source, DensitySource)
+    assert mps.r_e == 2.4 and isinstance(mps.gradient, MinimumPressureGradient)
+    assert isinstance(mps.solver.source, DensitySource)
+    with pytest.raises(ValueError, match="needs a free-surface model"):
+        jaxmps.schemes.standard().replace(surface=None)
+    with pytest.raises(ValueError, match="Scheme has no"):
+        jaxmps.schemes.standard().replace(beta=0.9)
     with pytest.raises(ValueError, match="ecs=True needs hs=True"):
         jaxmps.schemes.high_accuracy(hs=False)
     with pytest.raises(ValueError, match="solver=semi_implicit"):

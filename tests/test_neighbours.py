@@ -9,7 +9,6 @@ from jaxmps.neighbours import (
     NeighbourCache,
     build,
     candidate_counts,
-    joint_reuse,
     reuse_or_build,
 )
 
@@ -248,14 +247,13 @@ def test_a_batch_decides_jointly_and_keeps_the_branch(rng):
     xs = jnp.asarray(np.stack([x0, x1]))
     caches = jax.tree.map(lambda a: jnp.stack([a, a]), cache)
 
-    def lists(x, c):
-        return reuse_or_build(grid, x, active, 150, radius, skin, c).index
+    def lists(x, c, batch_axis=None):
+        return reuse_or_build(grid, x, active, 150, radius, skin, c, batch_axis).index
 
     plain = jax.vmap(lists)
-    with joint_reuse("batch"):
-        joint = jax.vmap(lists, axis_name="batch")
-        joint_jaxpr = str(jax.make_jaxpr(joint)(xs, caches))
-        got = joint(xs, caches)
+    joint = jax.vmap(lambda x, c: lists(x, c, "batch"), axis_name="batch")
+    joint_jaxpr = str(jax.make_jaxpr(joint)(xs, caches))
+    got = joint(xs, caches)
     # A plain vmap turns the branch into a select; the joint decision keeps it.
     assert "cond[" not in str(jax.make_jaxpr(plain)(xs, caches))
     assert "cond[" in joint_jaxpr
@@ -267,6 +265,5 @@ def test_a_batch_decides_jointly_and_keeps_the_branch(rng):
         np.testing.assert_array_equal(_within(index, x, radius), ref)
     # When every member may reuse, all use the carried lists.
     both = jnp.asarray(np.stack([x0, x0]))
-    with joint_reuse("batch"):
-        kept = jax.vmap(lists, axis_name="batch")(both, caches)
+    kept = joint(both, caches)
     np.testing.assert_array_equal(np.asarray(kept[1]), np.asarray(first.index))

@@ -60,7 +60,7 @@ def test_gradients_exact_on_linear_field_on_lattice(dim):
     phi = jnp.asarray(x @ a + 3.0)
     include = pairs.valid
     for grad in (StandardGradient(), CorrectedGradient()):
-        g = np.asarray(grad(pairs, phi, scene.n0, dim, include))
+        g = np.asarray(grad(pairs, phi, scene.discretisation, include))
         np.testing.assert_allclose(
             g[interior], np.tile(a, (interior.sum(), 1)), rtol=1e-10
         )
@@ -70,10 +70,10 @@ def test_corrected_gradient_exact_on_irregular_cloud(rng):
     scene, x, pairs, interior = _lattice(2, size=10, jitter=0.2, rng=rng)
     a = np.array([1.3, -0.4])
     phi = jnp.asarray(x @ a)
-    g = np.asarray(CorrectedGradient()(pairs, phi, scene.n0, 2, pairs.valid))
+    g = np.asarray(CorrectedGradient()(pairs, phi, scene.discretisation, pairs.valid))
     np.testing.assert_allclose(g[interior], np.tile(a, (interior.sum(), 1)), rtol=1e-10)
     # The standard gradient is not exact there (so the test above can fail).
-    s = np.asarray(StandardGradient()(pairs, phi, scene.n0, 2, pairs.valid))
+    s = np.asarray(StandardGradient()(pairs, phi, scene.discretisation, pairs.valid))
     assert np.abs(s[interior] - a).max() > 1e-3
 
 

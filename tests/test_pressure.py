@@ -120,7 +120,7 @@ def test_discrete_operator_gain_below_stability_bound():
 
     def dn(p):
         g = pressure_gradient(
-            jaxmps.CorrectedGradient(), pairs, p, kind, act, scene.n0, 2
+            jaxmps.CorrectedGradient(), scene.discretisation, pairs, p, kind, act
         )
         moved = make_pairs(nbrs.index, x - 1e-7 * g, scene.weight, scene.r_e)
         return (number_density(moved) - n) / 1e-7
@@ -169,12 +169,14 @@ def test_multigrid_preconditioner_is_spd_and_clusters_the_spectrum(dim, size, rn
     scene, x, system = _lattice_system(dim, size, rng)
     n = x.shape[0]
     mg = Multigrid(coarsest_cells=8, single_precision=False)
-    assert len(mg.layout(scene)[2]) >= 3  # really multilevel
-    m = _dense(mg(scene, x, system), n)
+    assert len(mg.layout(scene.grid, scene.discretisation)[2]) >= 3  # multilevel
+    m = _dense(mg(scene.grid, scene.discretisation, x, system), n)
     a = _dense(system.matvec, n)
     np.testing.assert_allclose(m, m.T, atol=1e-12 * np.abs(m).max())
     assert np.linalg.eigvalsh(m).min() > 0
-    m32 = _dense(Multigrid(coarsest_cells=8)(scene, x, system), n)
+    m32 = _dense(
+        Multigrid(coarsest_cells=8)(scene.grid, scene.discretisation, x, system), n
+    )
     assert m32.dtype == np.float64
     np.testing.assert_allclose(m32, m, rtol=0, atol=1e-3 * np.abs(m).max())
     assert np.abs(m32 - m32.T).max() > 0  # really rounded in float32
@@ -198,7 +200,9 @@ def test_multigrid_cg_matches_dense_gradient_and_vmap(rng):
 
     scene, state, pairs, surface = _system(rng)
     n = state.position.shape[0]
-    mg = functools.partial(Multigrid(coarsest_cells=8), scene, state.position)
+    mg = functools.partial(
+        Multigrid(coarsest_cells=8), scene.grid, scene.discretisation, state.position
+    )
     matvec, _, in_system = pressure_system(pairs, state.kind, state.active, surface)
     a = _dense(matvec, n)
     b0 = jnp.asarray(rng.normal(size=n))

@@ -11,7 +11,7 @@ import pytest
 
 import jaxmps
 from jaxmps import geometry
-from jaxmps.bodies import _rotation as rot
+from jaxmps.bodies import rotation as rot
 
 
 def test_quaternion_rotation_sanity(rng):
@@ -103,7 +103,15 @@ def test_projection_keeps_momentum_of_tentative_velocities(dim, rng):
     scene, params, state = _free_body(dim, 0.0 if dim == 2 else (0.0, 0.0, 0.0))
     u_hat = jnp.asarray(rng.normal(size=state.velocity.shape))
     tentative = eqx.tree_at(lambda s: s.velocity, state, u_hat)
-    moved = jaxmps.bodies.advance_bodies(scene, params, tentative)
+    nbrs = jaxmps.neighbours.build(
+        scene.grid, state.position, state.active, scene.max_neighbours, scene.r_e
+    )
+    pairs = jaxmps.operators.make_pairs(
+        nbrs.index, state.position, scene.weight, scene.r_e
+    )
+    zero = jnp.zeros_like(state.velocity)
+    load = jaxmps.FluidLoad(pairs=pairs, gradient=zero, wall_gradient=zero)
+    moved = scene.rigid.advance(scene.discretisation, params, tentative, load)
     m = 500.0 * 0.1**dim
     arm_k = np.asarray(state.position) - np.asarray(state.rigid.centre[0])
     p_hat = m * np.asarray(u_hat).sum(axis=0)
@@ -203,9 +211,31 @@ def test_scene_without_bodies_compiles_no_body_code():
         walk(closed.jaxpr)
         return " ".join(names)
 
-    assert "fluid" in scopes(fluid)
+    assert "pressure" in scopes(fluid) and "pressure" in scopes(body)
     assert "rigid" not in scopes(fluid)
     assert "rigid" in scopes(body)
+    # The coupling stage is empty without body models: no per-particle densities,
+    # no internal-pair masks.
+    assert "coupling" not in scopes(fluid)
+    assert "coupling" in scopes(body)
+
+
+def test_fluid_stages_import_nothing_from_the_body_models():
+    """The fluid package reaches bodies only through the coupling records: none of
+    its modules imports `jaxmps.bodies`."""
+    import ast
+    import pathlib
+
+    package = pathlib.Path(jaxmps.fluid.__file__).parent
+    for path in sorted(package.glob("*.py")):
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.ImportFrom):
+                names = [node.module or ""] + [a.name for a in node.names]
+            elif isinstance(node, ast.Import):
+                names = [a.name for a in node.names]
+            else:
+                continue
+            assert not any("bodies" in name for name in names), (path.name, names)
 
 
 def test_body_scenes_build_and_list():

@@ -165,3 +165,13 @@ def test_carried_neighbour_lists_change_a_rollout_by_round_off_only(solver):
         atol=1e-8 * float(jnp.max(looped.pressure)),
     )
     assert bool(jnp.any(looped.position != state.position))
+    # A loop of `step` from `with_neighbour_lists` carries them as simulate does:
+    # the same rollout, and the lists come out of each step for the next.
+    carried = jaxmps.with_neighbour_lists(scene, state)
+    for _ in range(n_steps):
+        carried, _ = jaxmps.step(scene, params, carried)
+        assert carried.neighbours is not None and bool(carried.neighbours.valid)
+    np.testing.assert_allclose(
+        rollout.state.position, carried.position, rtol=0, atol=1e-11 * scale
+    )
+    assert jaxmps.without_neighbour_lists(carried).neighbours is None

@@ -9,6 +9,7 @@ import jax.numpy as jnp
 from jaxtyping import Array, Bool, Float
 
 from .._numerics import safe_norm
+from .._params import Params
 
 
 class Contact(eqx.Module):
@@ -37,7 +38,15 @@ class AbstractNormalForce(eqx.Module):
     """How the normal force N of the Coulomb law is estimated."""
 
     @abc.abstractmethod
-    def __call__(self, contact: Contact, mass, volume, params, spacing, dim):
+    def __call__(
+        self,
+        contact: Contact,
+        mass: Float[Array, " b"],
+        volume: Float[Array, " b"],
+        params: Params,
+        spacing: float,
+        dim: int,
+    ) -> Float[Array, " b"]:
         """N >= 0 per body, shape (b,)."""
 
 
@@ -50,7 +59,15 @@ class ContactReaction(AbstractNormalForce):
     # along the contact face, and fluid pressure (buoyancy) is not counted as contact.
     """
 
-    def __call__(self, contact, mass, volume, params, spacing, dim):
+    def __call__(
+        self,
+        contact: Contact,
+        mass: Float[Array, " b"],
+        volume: Float[Array, " b"],
+        params: Params,
+        spacing: float,
+        dim: int,
+    ) -> Float[Array, " b"]:
         n = jnp.sum(contact.force * contact.normal, axis=-1)
         return jnp.where(contact.touching, jnp.maximum(n, 0.0), 0.0)
 
@@ -63,7 +80,15 @@ class ContactPressure(AbstractNormalForce):
     accuracy of the sliding onset in 2-D, ~80 % in 3-D).
     """
 
-    def __call__(self, contact, mass, volume, params, spacing, dim):
+    def __call__(
+        self,
+        contact: Contact,
+        mass: Float[Array, " b"],
+        volume: Float[Array, " b"],
+        params: Params,
+        spacing: float,
+        dim: int,
+    ) -> Float[Array, " b"]:
         return jnp.where(
             contact.touching, contact.pressure_sum * spacing ** (dim - 1), 0.0
         )
@@ -78,7 +103,15 @@ class SubmergedWeight(AbstractNormalForce):
     # submerged weight (digest §4.2). A body lighter than the fluid gets N = 0.
     """
 
-    def __call__(self, contact, mass, volume, params, spacing, dim):
+    def __call__(
+        self,
+        contact: Contact,
+        mass: Float[Array, " b"],
+        volume: Float[Array, " b"],
+        params: Params,
+        spacing: float,
+        dim: int,
+    ) -> Float[Array, " b"]:
         cos = jnp.abs(jnp.sum(params.gravity[None, :] * contact.normal, axis=-1))
         weight = jnp.maximum(mass - params.density * volume, 0.0)
         return jnp.where(contact.touching, weight * cos, 0.0)
@@ -129,7 +162,7 @@ class Coulomb(eqx.Module):
         volume: Float[Array, " b"],
         mu_static: Float[Array, " b"],
         mu_kinetic: Float[Array, " b"],
-        params,
+        params: Params,
         spacing: float,
         dim: int,
     ) -> tuple[Float[Array, "b d"], Bool[Array, " b"]]:

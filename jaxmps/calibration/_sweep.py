@@ -8,8 +8,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from .._result import result_code
 from .._simulate import simulate
-from ..neighbours import joint_reuse
 from ..scenes import observe_probes
 from ._fields import get_field, set_field
 
@@ -61,15 +61,23 @@ def _batched(scene, params, state, n_steps, save_every, observe, axes):
     repeated sweeps reuse it."""
 
     def run(p):
-        with joint_reuse(_AXIS):
-            tr = simulate(scene, p, state, n_steps, save_every, observe, throw=False)
-        return tr.saved, tr.result._value
+        tr = simulate(
+            scene,
+            p,
+            state,
+            n_steps,
+            save_every,
+            observe,
+            throw=False,
+            batch_axis=_AXIS,
+        )
+        return tr.saved, result_code(tr.result)
 
     return jax.vmap(run, in_axes=(axes,), axis_name=_AXIS)(params)
 
 
 # The batch axis: the members decide together whether a step can use the neighbour
-# lists carried from the previous one (`neighbours.joint_reuse`).
+# lists carried from the previous one (`simulate(..., batch_axis=...)`).
 _AXIS = "jaxmps_sweep"
 
 
@@ -106,7 +114,7 @@ def sweep(
             axes,
             is_leaf=lambda x: x is None,
         )
-        case.scene.solver.check_params(case.scene, member)
+        case.scene.solver.check_params(case.scene.discretisation, member)
     chunk = b if chunk is None else max(1, min(int(chunk), b))
     n_chunks = -(-b // chunk)
 

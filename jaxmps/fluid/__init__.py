@@ -1,10 +1,18 @@
-"""Fluid solvers and their stages."""
+"""Fluid stages of a step and the two pressure stages (semi-implicit, explicit).
+
+The step (`jaxmps.step`) runs them in order: `predict` (viscosity, gravity), the
+`CollisionGuard`, `advect` to r*, `detect_surface`, the pressure stage (a
+`SemiImplicit` Poisson solve or the `Explicit` equation of state),
+`pressure_force`, `accelerate` and the `DynamicStabilisation`; wall motion, inflow
+and outflow act on the boundaries around them.
+"""
 
 from .._params import HarmonicParams as HarmonicParams
 from .._params import InflowParams as InflowParams
 from .._params import StrokeParams as StrokeParams
 from ._cg import SolveInfo as SolveInfo
 from ._cg import solve_spd as solve_spd
+from ._correct import pressure_force as pressure_force
 from ._correct import pressure_gradient as pressure_gradient
 from ._explicit import Explicit as Explicit
 from ._motion import AbstractMotionLaw as AbstractMotionLaw
@@ -20,13 +28,18 @@ from ._precondition import AbstractPreconditioner as AbstractPreconditioner
 from ._precondition import Jacobi as Jacobi
 from ._precondition import Multigrid as Multigrid
 from ._precondition import PressureSystem as PressureSystem
-from ._predict import collide as collide
-from ._predict import predict_velocity as predict_velocity
+from ._predict import CollisionGuard as CollisionGuard
+from ._predict import accelerate as accelerate
+from ._predict import advect as advect
+from ._predict import is_mobile as is_mobile
+from ._predict import predict as predict
 from ._pressure import assemble_pressure_system as assemble_pressure_system
 from ._pressure import pressure_system as pressure_system
 from ._pressure import solve_pressure as solve_pressure
-from ._semi_implicit import AbstractSolver as AbstractSolver
 from ._semi_implicit import SemiImplicit as SemiImplicit
+from ._solver import AbstractPressureSolver as AbstractPressureSolver
+from ._solver import PressureInputs as PressureInputs
+from ._solver import PressureSolution as PressureSolution
 from ._source import AbstractCompensation as AbstractCompensation
 from ._source import AbstractSource as AbstractSource
 from ._source import DensitySource as DensitySource

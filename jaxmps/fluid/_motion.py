@@ -14,7 +14,9 @@ class AbstractMotionLaw(eqx.Module):
     """Displacement X(t) along the motion axis, from its Params."""
 
     @abc.abstractmethod
-    def displacement(self, params, time) -> Float[Array, ""]:
+    def displacement(
+        self, params: HarmonicParams | StrokeParams, time: Float[Array, ""]
+    ) -> Float[Array, ""]:
         """X(time) [m]."""
 
 
@@ -23,7 +25,9 @@ class Harmonic(AbstractMotionLaw):
 
     start: float = 0.0
 
-    def displacement(self, params: HarmonicParams, time):
+    def displacement(
+        self, params: HarmonicParams, time: Float[Array, ""]
+    ) -> Float[Array, ""]:
         phase = 2 * jnp.pi * params.frequency * (time - self.start)
         return jnp.where(time >= self.start, params.amplitude * jnp.sin(phase), 0.0)
 
@@ -31,7 +35,9 @@ class Harmonic(AbstractMotionLaw):
 class Tabulated(AbstractMotionLaw):
     """A prescribed stroke history (piston wave maker)."""
 
-    def displacement(self, params: StrokeParams, time):
+    def displacement(
+        self, params: StrokeParams, time: Float[Array, ""]
+    ) -> Float[Array, ""]:
         return jnp.interp(time, params.times, params.stroke)
 
 
@@ -49,11 +55,15 @@ class PrescribedMotion(eqx.Module):
     law: AbstractMotionLaw
 
 
-def move_walls(scene, motion: PrescribedMotion, params, dt, state: State) -> State:
+def move_walls(
+    motion: PrescribedMotion,
+    params: HarmonicParams | StrokeParams,
+    dt: Float[Array, ""],
+    state: State,
+) -> State:
     """Advance the moving particles from t to t + dt exactly (displacement
     difference, no drift) and give them the mean velocity of the step, which the
     viscous term and the PPE source see."""
-    del scene
     idx = jnp.asarray(motion.particles)
     axis = jnp.asarray(motion.axis, state.position.dtype)
     shift = motion.law.displacement(params, state.time + dt) - motion.law.displacement(

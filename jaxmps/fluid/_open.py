@@ -4,11 +4,13 @@ allocated: the State's shapes never change."""
 
 import equinox as eqx
 import jax.numpy as jnp
-from jaxtyping import Array, Bool
+from jaxtyping import Array, Bool, Float
 
 from .._params import InflowParams
 from .._state import State
 from .._types import Kind
+from ..neighbours import Grid
+from ..operators import Discretisation
 
 
 class Inflow(eqx.Module):
@@ -41,7 +43,11 @@ class Outflow(eqx.Module):
 
 
 def apply_inflow(
-    scene, inflow: Inflow, params: InflowParams, dt, state: State
+    disc: Discretisation,
+    inflow: Inflow,
+    params: InflowParams,
+    dt: Float[Array, ""],
+    state: State,
 ) -> tuple[State, Bool[Array, ""]]:
     """Move the inflow boundary and spawn a fluid column when it has moved l0.
 
@@ -54,10 +60,10 @@ def apply_inflow(
     layer = jnp.asarray(inflow.pressure_layer)
     boundary = jnp.asarray(inflow.boundary)
     u = params.velocity
-    e_x = jnp.zeros(scene.dim, state.position.dtype).at[0].set(1.0)
+    e_x = jnp.zeros(disc.dim, state.position.dtype).at[0].set(1.0)
     position = state.position.at[boundary, 0].add(u * dt)
     velocity = state.velocity.at[boundary].set(u * e_x)
-    spawn = position[layer[0], 0] - inflow.origin >= scene.spacing
+    spawn = position[layer[0], 0] - inflow.origin >= disc.spacing
     free = jnp.nonzero(~state.active, size=layer.shape[0], fill_value=n)[0]
     short = spawn & jnp.any(free == n)
     target = jnp.where(spawn, free, n)
@@ -66,7 +72,7 @@ def apply_inflow(
     kind = state.kind.at[target].set(int(Kind.FLUID), mode="drop")
     active = state.active.at[target].set(True, mode="drop")
     pressure = state.pressure.at[target].set(0.0, mode="drop")
-    position = position.at[boundary, 0].add(jnp.where(spawn, -scene.spacing, 0.0))
+    position = position.at[boundary, 0].add(jnp.where(spawn, -disc.spacing, 0.0))
     new = eqx.tree_at(
         lambda s: (s.position, s.velocity, s.kind, s.active, s.pressure),
         state,
@@ -75,14 +81,14 @@ def apply_inflow(
     return new, short
 
 
-def apply_outflow(scene, outflow: Outflow, state: State) -> State:
+def apply_outflow(outflow: Outflow, grid: Grid, state: State) -> State:
     """Deactivate fluid particles past the outflow plane."""
     gone = (
         state.active
         & (state.kind == int(Kind.FLUID))
         & (state.position[:, outflow.axis] > outflow.position)
     )
-    origin = jnp.asarray(scene.grid.origin, state.position.dtype)[None, :]
+    origin = jnp.asarray(grid.origin, state.position.dtype)[None, :]
     return eqx.tree_at(
         lambda s: (s.position, s.velocity, s.pressure, s.active),
         state,

@@ -1,6 +1,5 @@
 """Pressure Poisson equation of the semi-implicit step (seed 000 eq. 2.2-14/15)."""
 
-import functools
 from collections.abc import Callable
 
 import jax
@@ -11,7 +10,7 @@ from .._numerics import take_rows
 from .._types import PRESSURE_KINDS, is_kind
 from ..operators import Pairs
 from ._cg import SolveInfo, solve_spd
-from ._precondition import Apply, Jacobi, PressureSystem
+from ._precondition import Apply, PressureSystem
 
 
 def assemble_pressure_system(
@@ -69,11 +68,12 @@ def solve_pressure(
     """Solve A p = source on the system rows (source is ignored elsewhere).
 
     `preconditioner` builds M^-1 from the (gradient-stopped) system, e.g.
-    `functools.partial(Multigrid(), scene, position)`; None is Jacobi."""
+    `functools.partial(Multigrid(), grid, disc, position)`; None is Jacobi."""
     system = assemble_pressure_system(pairs, kind, active, surface, coefficient)
     b = jnp.where(system.in_system, source, 0.0)
     x0 = jnp.where(system.in_system, guess, 0.0)
-    if preconditioner is None:
-        preconditioner = functools.partial(Jacobi(), None, None)
-    apply = preconditioner(jax.lax.stop_gradient(system))
+    stopped = jax.lax.stop_gradient(system)
+    apply = (
+        stopped.inverse_diagonal if preconditioner is None else preconditioner(stopped)
+    )
     return solve_spd(system.matvec, b, x0, apply, rtol, atol, max_iterations)

@@ -1,55 +1,25 @@
-"""The semi-implicit MPS step (Koshizuka & Oka 1996; seed 000 §2.6 and §3)."""
+"""The semi-implicit pressure stage: a pressure Poisson equation solved by
+preconditioned CG (Koshizuka & Oka 1996; seed 000 §2.6 and §3)."""
 
-import abc
 import functools
+from typing import ClassVar
 
-import equinox as eqx
 import jax.numpy as jnp
 
 from .._params import Params
-from .._result import StepInfo
-from .._state import State
-from .._types import PRESSURE_KINDS, is_kind
-from ..bodies import (
-    body_pressure_gradient,
-    is_body,
-    particle_density,
-    with_contact,
-)
-from ..operators import number_density
-from ._correct import pressure_gradient
+from ..neighbours import Grid
+from ..operators import AbstractLaplacian, Discretisation, number_density
 from ._precondition import AbstractPreconditioner, Multigrid
-from ._predict import (
-    carry_neighbours,
-    collide,
-    is_mobile,
-    neighbour_pairs,
-    predict_state_velocity,
-)
 from ._pressure import solve_pressure
+from ._solver import AbstractPressureSolver, PressureInputs, PressureSolution
 from ._source import AbstractSource, MixedSource, SourceInputs
-from ._stabilise import DynamicStabilisation
-from ._surface import FreeSurface, detect_surface
 
 
-class AbstractSolver(eqx.Module):
-    """How the fluid is advanced by one step (semi-implicit or explicit MPS)."""
-
-    @abc.abstractmethod
-    def advance(self, scene, params: Params, state: State) -> tuple[State, StepInfo]:
-        """Advance fluid (and body-as-fluid) particles by `params.dt`."""
-
-    def check_params(self, scene, params: Params) -> None:
-        """Refuse, before any tracing, Params this solver cannot run (ValueError).
-
-        Only concrete values are checked; traced ones (inside jit or vmap) are left
-        to the run-time result codes.
-        """
-        del scene, params
-
-
-class SemiImplicit(AbstractSolver):
-    """Semi-implicit MPS: explicit viscosity and gravity, implicit pressure.
+class SemiImplicit(AbstractPressureSolver):
+    """Semi-implicit MPS: the pressure from a pressure Poisson equation (PPE),
+    <lap P>_i = S_i over the non-surface pressure-carrying particles, P = 0 on the
+    free surface, solved matrix-free by preconditioned CG and differentiated
+    implicitly.
 
     Attributes:
         rtol: relative tolerance ||r|| <= rtol ||b|| of the pressure solve; `None`
@@ -59,18 +29,13 @@ class SemiImplicit(AbstractSolver):
         max_iterations: cap on CG iterations; reaching it without converging sets
             `Result.pressure_not_converged`.
         clamp_negative_pressure: set negative pressures to zero after the solve.
-        collision_distance: collision-guard distance, in units of the spacing l0;
-            None switches the guard off.
-        collision_restitution: coefficient of restitution of the collision guard.
         source: the PPE source term (`MixedSource()`, the seed's `DensitySource()`
             or the higher-order `HigherOrderSource()`).
-        surface: free-surface detection settings.
-        stabiliser: `DynamicStabilisation()` (DS, with the unshifted corrected
-            gradient of the high-accuracy scheme) or None.
         preconditioner: of the pressure solve's CG: `Multigrid()` (aggregation
             V-cycle, the default) or `Jacobi()`.
     """
 
+    needs_surface: ClassVar[bool] = True
     rtol: float | None = None
     atol: float = 1e-12
     max_iterations: int = 2000
@@ -78,13 +43,9 @@ class SemiImplicit(AbstractSolver):
     # zero (as most MPS codes do) suppresses tensile clustering at the free surface
     # with the corrected gradient, which has no minimum-pressure shift.
     clamp_negative_pressure: bool = True
-    collision_distance: float | None = 0.5
-    collision_restitution: float = 0.2
     # Choice: the seed's source (n0 - n*)/n0 alone is unstable here (see
     # `DensitySource`); the default is the mixed source of Tanaka & Masunaga (2010).
     source: AbstractSource = MixedSource()
-    surface: FreeSurface = FreeSurface()
-    stabiliser: DynamicStabilisation | None = None
     # Choice: multigrid by default. Its V-cycle costs about four Jacobi iterations
     # but cuts the iterations ten- to twentyfold (benchmarks/NOTES.md §3).
     preconditioner: AbstractPreconditioner = Multigrid()
@@ -96,123 +57,54 @@ class SemiImplicit(AbstractSolver):
             raise ValueError("SemiImplicit.max_iterations must be at least 1.")
 
     def tolerance(self, dtype) -> float:
+        """The relative tolerance of the solve in `dtype`."""
         if self.rtol is not None:
             return self.rtol
         return 1e-9 if jnp.dtype(dtype) == jnp.float64 else 1e-5
 
-    def advance(self, scene, params, state):
-        dt = params.dt
-        mobile = is_mobile(state.kind, state.active)
-        # 1. Explicit part at positions r^k (eq. 2.2-3, 2.2-5).
-        nbrs_k, pairs_k = neighbour_pairs(
-            scene, state.position, state.active, state.neighbours
-        )
-        u_star = predict_state_velocity(scene, params, state, pairs_k)
-        if self.collision_distance is not None:
-            u_star = collide(
-                u_star,
-                state.kind,
-                state.active,
-                pairs_k,
-                self.collision_distance * scene.spacing,
-                self.collision_restitution,
-            )
-        x_star = jnp.where(
-            mobile[:, None], state.position + dt * u_star, state.position
-        )
-
-        # 2. Tentative number density and free surface at r* (eq. 2.2-6, 2.4-1).
-        nbrs, pairs = neighbour_pairs(scene, x_star, state.active)
-        n_star = number_density(pairs)
-        surface = detect_surface(
-            self.surface, params.beta, scene.n0, n_star, state.kind, state.active, pairs
-        )
-
-        # 3. Pressure Poisson equation (eq. 2.2-14/15).
+    def __call__(
+        self,
+        disc: Discretisation,
+        laplacian: AbstractLaplacian,
+        grid: Grid,
+        params: Params,
+        inputs: PressureInputs,
+    ) -> PressureSolution:
         # With <lap p>_i = f sum_j c_ij (p_j - p_i) (the Scene's Laplacian),
-        # A p = sum_j c_ij (p_i - p_j) = -<lap p> / f, so b = -S / f for <lap p> = S.
-        inputs = SourceInputs(
-            pairs=pairs,
-            n_star=n_star,
-            u_star=u_star,
-            pairs_k=pairs_k,
-            n_k=number_density(pairs_k),
-            velocity_k=state.velocity,
+        # A p = sum_j c_ij (p_i - p_j) = -<lap p> / f, so b = -S / f for <lap p> = S
+        # (eq. 2.2-14/15).
+        sources = SourceInputs(
+            pairs=inputs.pairs,
+            n_star=inputs.n_star,
+            u_star=inputs.velocity,
+            pairs_k=inputs.pairs_k,
+            n_k=number_density(inputs.pairs_k),
+            velocity_k=inputs.velocity_k,
             density=params.density,
-            dt=dt,
+            dt=params.dt,
         )
-        coefficient, factor = scene.laplacian.coefficients(pairs, scene)
-        source = -self.source(scene, inputs) / factor
-        pressure, solve_info = solve_pressure(
-            pairs,
-            state.kind,
-            state.active,
-            surface,
+        coefficient, factor = laplacian.coefficients(inputs.pairs, disc)
+        source = -self.source(disc, sources) / factor
+        pressure, info = solve_pressure(
+            inputs.pairs,
+            inputs.kind,
+            inputs.active,
+            inputs.surface,
             source,
-            state.pressure,
-            self.tolerance(state.position.dtype),
+            inputs.pressure_k,
+            self.tolerance(inputs.position.dtype),
             self.atol,
             self.max_iterations,
             coefficient,
-            functools.partial(self.preconditioner, scene, x_star),
+            functools.partial(self.preconditioner, grid, disc, inputs.position),
         )
         if self.clamp_negative_pressure:
             pressure = jnp.maximum(pressure, 0.0)
-
-        # 4. Correction (eq. 2.2-8/9/10), pressure gradient at r*.
-        grad_p = pressure_gradient(
-            scene.gradient,
-            pairs,
-            pressure,
-            state.kind,
-            state.active,
-            scene.n0,
-            scene.dim,
-        )
-        contact_gradient = None
-        if state.rigid is not None:
-            carries = jnp.logical_and(state.active, is_kind(state.kind, PRESSURE_KINDS))
-            body_gradient, contact_gradient = body_pressure_gradient(
-                scene, state, pairs, pressure, carries
-            )
-            grad_p = jnp.where(is_body(state)[:, None], body_gradient, grad_p)
-        rho = particle_density(params, state)
-        u_prime = jnp.where(
-            mobile[:, None], -(dt / jnp.reshape(rho, (-1, 1))) * grad_p, 0.0
-        )
-        if self.stabiliser is not None:
-            push = self.stabiliser(
-                scene,
-                pairs,
-                state.position,
-                x_star + dt * u_prime,
-                state.kind,
-                state.active,
-                dt,
-            )
-            u_prime = u_prime + dt * push
-        new_state = State(
-            time=state.time + dt,
-            step=state.step + 1,
-            position=x_star + dt * u_prime,
-            velocity=u_star + u_prime,
+        return PressureSolution(
             pressure=pressure,
-            kind=state.kind,
-            active=state.active,
-            result=state.result,
-            rigid=state.rigid,
-            neighbours=carry_neighbours(state, nbrs, x_star),
-        )
-        if state.rigid is not None:
-            new_state = with_contact(scene, new_state, pairs, contact_gradient)
-        info = StepInfo(
-            pressure_iterations=solve_info.iterations,
-            pressure_residual=solve_info.residual,
-            pressure_converged=solve_info.converged,
-            neighbour_overflow=nbrs_k.neighbour_overflow | nbrs.neighbour_overflow,
-            cell_overflow=nbrs_k.cell_overflow | nbrs.cell_overflow,
-            outside=jnp.any(nbrs_k.outside) | jnp.any(nbrs.outside),
-            surface_count=jnp.sum(surface, dtype=jnp.int32),
+            free=inputs.surface,
+            iterations=info.iterations,
+            residual=info.residual,
+            converged=info.converged,
             unstable=jnp.asarray(False),
         )
-        return new_state, info

@@ -7,7 +7,7 @@ import jax.numpy as jnp
 from jaxtyping import Array, Float
 
 from .._numerics import component_dot, pair_differences
-from ..operators import Pairs, lattice_sum
+from ..operators import Discretisation, Pairs, lattice_sum
 
 
 class SourceInputs(eqx.Module):
@@ -35,8 +35,10 @@ class AbstractSource(eqx.Module):
     """Right-hand side S of the PPE  <lap P>_i = S_i  [Pa/m^2]."""
 
     @abc.abstractmethod
-    def __call__(self, scene, inputs: SourceInputs) -> Float[Array, " n"]:
-        """S_i [Pa/m^2]; `scene` supplies dim, n0, r_e, spacing and the weight."""
+    def __call__(
+        self, disc: Discretisation, inputs: SourceInputs
+    ) -> Float[Array, " n"]:
+        """S_i [Pa/m^2]."""
 
 
 def _density_term(inputs: SourceInputs, n, n0):
@@ -57,8 +59,10 @@ class DensitySource(AbstractSource):
 
     relaxation: float = 1.0
 
-    def __call__(self, scene, inputs):
-        return self.relaxation * _density_term(inputs, inputs.n_star, scene.n0)
+    def __call__(
+        self, disc: Discretisation, inputs: SourceInputs
+    ) -> Float[Array, " n"]:
+        return self.relaxation * _density_term(inputs, inputs.n_star, disc.n0)
 
 
 class MixedSource(AbstractSource):
@@ -73,21 +77,25 @@ class MixedSource(AbstractSource):
 
     gamma: float = 0.01
 
-    def __call__(self, scene, inputs):
+    def __call__(
+        self, disc: Discretisation, inputs: SourceInputs
+    ) -> Float[Array, " n"]:
         pairs, u = inputs.pairs, inputs.u_star
         du = pair_differences(u, pairs.index)
         radial = component_dot(du, pairs.offset) / pairs.distance**2
-        divergence = (scene.dim / scene.n0) * jnp.sum(radial * pairs.weight, axis=1)
+        divergence = (disc.dim / disc.n0) * jnp.sum(radial * pairs.weight, axis=1)
         return inputs.density / inputs.dt * divergence + self.gamma * _density_term(
-            inputs, inputs.n_star, scene.n0
+            inputs, inputs.n_star, disc.n0
         )
 
 
-def density_rate(scene, pairs: Pairs, velocity: Float[Array, "n d"]):
+def density_rate(
+    disc: Discretisation, pairs: Pairs, velocity: Float[Array, "n d"]
+) -> Float[Array, " n"]:
     """Dn_i/Dt = sum_j w'(r_ij) (r_ij . u_ij) / r_ij, the exact time derivative of
     the number density for the current velocities (seed 001 eq. 2.3)."""
-    safe_r = jnp.where(pairs.valid, pairs.distance, scene.r_e)
-    slope = jnp.where(pairs.valid, scene.weight.derivative(safe_r, scene.r_e), 0.0)
+    safe_r = jnp.where(pairs.valid, pairs.distance, disc.r_e)
+    slope = jnp.where(pairs.valid, disc.weight.derivative(safe_r, disc.r_e), 0.0)
     du = pair_differences(velocity, pairs.index)
     closing = component_dot(du, pairs.offset) / pairs.distance
     return jnp.sum(slope * closing, axis=1)
@@ -97,7 +105,9 @@ class AbstractCompensation(eqx.Module):
     """An error-compensating term S_ECS subtracted from the PPE source (x rho0)."""
 
     @abc.abstractmethod
-    def __call__(self, scene, inputs: SourceInputs) -> Float[Array, " n"]:
+    def __call__(
+        self, disc: Discretisation, inputs: SourceInputs
+    ) -> Float[Array, " n"]:
         """S_ECS_i [1/s^2]."""
 
 
@@ -109,10 +119,12 @@ class DynamicCompensation(AbstractCompensation):
     follow the instantaneous error, so it needs no tuning.
     """
 
-    def __call__(self, scene, inputs):
-        n0 = scene.n0
+    def __call__(
+        self, disc: Discretisation, inputs: SourceInputs
+    ) -> Float[Array, " n"]:
+        n0 = disc.n0
         error = (inputs.n_k - n0) / n0
-        rate = density_rate(scene, inputs.pairs_k, inputs.velocity_k) / n0
+        rate = density_rate(disc, inputs.pairs_k, inputs.velocity_k) / n0
         return (jnp.abs(error) * rate + jnp.abs(rate) * error) / inputs.dt
 
 
@@ -144,20 +156,22 @@ class HigherOrderSource(AbstractSource):
     compensation: AbstractCompensation | None = DynamicCompensation()
     normalised: bool = False
 
-    def scale(self, scene) -> float:
+    def scale(self, disc: Discretisation) -> float:
         if not self.normalised:
             return 1.0
-        ratio = scene.r_e / scene.spacing
+        ratio = disc.r_e / disc.spacing
         moment = lattice_sum(
-            lambda r, o: scene.weight.derivative(r, ratio) * r, scene.dim, ratio
+            lambda r, o: disc.weight.derivative(r, ratio) * r, disc.dim, ratio
         )
-        return -scene.dim * scene.n0 / moment
+        return -disc.dim * disc.n0 / moment
 
-    def __call__(self, scene, inputs):
-        n0 = scene.n0
-        rate = density_rate(scene, inputs.pairs, inputs.u_star)
-        source = -(inputs.density * self.scale(scene) / (n0 * inputs.dt)) * rate
+    def __call__(
+        self, disc: Discretisation, inputs: SourceInputs
+    ) -> Float[Array, " n"]:
+        n0 = disc.n0
+        rate = density_rate(disc, inputs.pairs, inputs.u_star)
+        source = -(inputs.density * self.scale(disc) / (n0 * inputs.dt)) * rate
         source = source + self.gamma * _density_term(inputs, inputs.n_k, n0)
         if self.compensation is not None:
-            source = source - inputs.density * self.compensation(scene, inputs)
+            source = source - inputs.density * self.compensation(disc, inputs)
         return source

@@ -2,7 +2,7 @@
 
 import equinox as eqx
 import jax.numpy as jnp
-from jaxtyping import Array, Bool, Float
+from jaxtyping import Array, Float
 
 from .._numerics import (
     component_dot,
@@ -11,8 +11,8 @@ from .._numerics import (
     safe_norm,
     take_rows,
 )
-from .._types import Kind
-from ..operators import Pairs
+from .._types import Kind, Kinds, Mask
+from ..operators import Discretisation, Pairs
 
 
 class DynamicStabilisation(eqx.Module):
@@ -49,12 +49,12 @@ class DynamicStabilisation(eqx.Module):
 
     def __call__(
         self,
-        scene,
+        disc: Discretisation,
         pairs: Pairs,
         position_k: Float[Array, "n d"],
         predicted: Float[Array, "n d"],
-        kind,
-        active: Bool[Array, " n"],
+        kind: Kinds,
+        active: Mask,
         dt: Float[Array, ""],
     ) -> Float[Array, "n d"]:
         """Acceleration of each particle [m/s^2] (zero for all but fluid)."""
@@ -67,12 +67,12 @@ class DynamicStabilisation(eqx.Module):
         offset = pair_differences(predicted, index)
         parallel = component_dot(offset, e)
         r2 = component_dot(offset, offset)
-        contact = self.alpha * scene.spacing
+        contact = self.alpha * disc.spacing
         close = listed & (r2 < contact**2) & fluid[:, None]
         perp2 = jnp.maximum(r2 - parallel**2, 0.0)
         gap = jnp.sqrt(jnp.where(close, contact**2 - perp2, 1.0)) - parallel
         share = jnp.where(take_rows(fluid, index), 0.5, 1.0)
         pi = jnp.where(close, share * gap / dt**2, 0.0)
         if self.weighted:
-            pi = pi * pairs.weight / scene.n0
+            pi = pi * pairs.weight / disc.n0
         return -pair_sum(pi, e)

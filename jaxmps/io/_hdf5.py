@@ -12,6 +12,9 @@ import h5py
 import jax.numpy as jnp
 import numpy as np
 
+from .._result import result_code, result_from_code
+from .._state import State
+
 FORMAT = "jaxmps-run"
 FORMAT_VERSION = 1
 
@@ -61,22 +64,6 @@ def _jsonable(value: Any) -> Any:
 def config_json(config: dict) -> str:
     """`case.config` as a JSON string (numpy values converted, None kept as null)."""
     return json.dumps(_jsonable(dict(config)), sort_keys=True)
-
-
-def _result_value(result: Any) -> int:
-    """The integer value of a `Result` item (or of an integer)."""
-    value = getattr(result, "_value", result)
-    return int(np.asarray(value))
-
-
-def result_from_value(value: int):
-    """The `jaxmps.Result` item whose integer value is `value`."""
-    from .._result import Result
-
-    for item in Result._name_to_item.values():
-        if int(np.asarray(item._value)) == int(value):
-            return item
-    raise ValueError(f"No jaxmps.Result has the integer value {value}.")
 
 
 def _open_checked(path: str | os.PathLike, mode: str = "r") -> h5py.File:
@@ -283,7 +270,7 @@ class RunWriter:
         for name in STATE_FIELDS:
             value = getattr(state, name)
             if name == "result":
-                value = _result_value(value)
+                value = int(np.asarray(result_code(value)))
             group.create_dataset(name, data=np.asarray(value))
         rigid = getattr(state, "rigid", None)
         if rigid is not None:
@@ -472,8 +459,6 @@ def load_state(path: str | os.PathLike, case: Any):
         ValueError: if the file is not a run file, has no /state, or its shapes do not
             match the case.
     """
-    from .._state import State
-
     with _open_checked(path) as f:
         if "state" not in f:
             raise ValueError(f"'{path}' has no /state group: nothing to restart from.")
@@ -514,7 +499,7 @@ def load_state(path: str | os.PathLike, case: Any):
                 raise ValueError(f"'{path}': /state/rigid lacks '{name}'.")
             parts[name] = cast(f"/state/rigid/{name}", rigid_values[name], like)
         rigid = type(like_rigid)(**parts)
-    return State(**fields, result=result_from_value(int(values["result"])), rigid=rigid)
+    return State(**fields, result=result_from_code(int(values["result"])), rigid=rigid)
 
 
 def write_run(

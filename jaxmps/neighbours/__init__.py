@@ -6,6 +6,5 @@ from ._list import NeighbourCache as NeighbourCache
 from ._list import Neighbours as Neighbours
 from ._list import build as build
 from ._list import cell_coordinates as cell_coordinates
-from ._list import joint_reuse as joint_reuse
-from ._list import joint_reuse_axis as joint_reuse_axis
 from ._list import reuse_or_build as reuse_or_build
+from ._list import search as search

@@ -22,9 +22,6 @@ particles actually in the stencil cells (about 3x the neighbour count with
 reach 2), where fixed per-cell slots tested 9 x the fullest cell's capacity.
 """
 
-import contextlib
-import contextvars
-
 import equinox as eqx
 import jax
 import jax.numpy as jnp
@@ -276,6 +273,7 @@ def reuse_or_build(
     radius: float,
     skin: float,
     cache: NeighbourCache,
+    batch_axis: str | None = None,
 ) -> Neighbours:
     """Neighbour lists within `radius` at `position`: the cached lists when they
     still hold every such pair, else a new search (`build` with radius + skin).
@@ -288,17 +286,19 @@ def reuse_or_build(
     to round-off, not bit for bit.
 
     The choice is a `lax.cond`. Under a plain `vmap` it becomes a select that runs
-    the search as well, so batched runs keep the results but not the saving;
-    inside `joint_reuse` (as `jaxmps.sweep` runs) it stays a branch.
+    the search as well, so batched runs keep the results but not the saving. With
+    `batch_axis`, the name of the enclosing `vmap`'s axis (`jax.vmap(...,
+    axis_name=...)`, as `jaxmps.sweep` runs), the members decide together: the
+    carried lists are used when every member may use them, else every member
+    searches, and the choice stays a branch.
     """
     x = jax.lax.stop_gradient(position)
     moved = jnp.sum((x - cache.position) ** 2, axis=-1)
     moved = jnp.max(jnp.where(active, moved, 0.0))
     reusable = cache.valid & jnp.all(active == cache.active) & (4 * moved < skin**2)
-    axis = _JOINT_AXIS.get()
-    if axis is not None:
-        # One decision for the whole batch (see `joint_reuse`).
-        reusable = jax.lax.pmin(reusable.astype(jnp.int32), axis) > 0
+    if batch_axis is not None:
+        # One decision for the whole batch.
+        reusable = jax.lax.pmin(reusable.astype(jnp.int32), batch_axis) > 0
 
     def carried():
         _, outside = cell_coordinates(grid, x)
@@ -316,25 +316,26 @@ def reuse_or_build(
     return jax.lax.cond(reusable, carried, searched)
 
 
-_JOINT_AXIS: contextvars.ContextVar[str | None] = contextvars.ContextVar(
-    "jaxmps_joint_reuse_axis", default=None
-)
+def search(
+    grid: Grid,
+    position: Float[Array, "n d"],
+    active: Bool[Array, " n"],
+    max_neighbours: int,
+    radius: float,
+    skin: float,
+    cache: NeighbourCache | None = None,
+    batch_axis: str | None = None,
+) -> Neighbours:
+    """The neighbour stage of a step: lists of every pair closer than `radius`,
+    searched within radius + `skin` so that they can be carried to the next step.
 
-
-@contextlib.contextmanager
-def joint_reuse(axis_name: str | None):
-    """While tracing inside it, `reuse_or_build` decides once for a whole `vmap`
-    batch over the named axis: the carried lists are used when every member may
-    use them, else every member searches. The decision then stays a `lax.cond`
-    instead of a select that searches for all members at every step. None: no
-    joint decision (a no-op)."""
-    token = _JOINT_AXIS.set(axis_name)
-    try:
-        yield
-    finally:
-        _JOINT_AXIS.reset(token)
-
-
-def joint_reuse_axis() -> str | None:
-    """The axis name of the enclosing `joint_reuse`, or None."""
-    return _JOINT_AXIS.get()
+    With a `cache` (lists carried from the previous step), those are used instead
+    of a search while they still hold every such pair (`reuse_or_build`, where
+    `batch_axis` is explained). Pairs beyond `radius` are masked afterwards by the
+    pair geometry (`operators.Pairs.valid`).
+    """
+    if cache is None:
+        return build(grid, position, active, max_neighbours, radius + skin)
+    return reuse_or_build(
+        grid, position, active, max_neighbours, radius, skin, cache, batch_axis
+    )

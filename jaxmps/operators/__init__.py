@@ -1,10 +1,12 @@
 """MPS discrete operators: pure functions of pair geometry and particle fields."""
 
 from ._density import number_density as number_density
+from ._discretisation import Discretisation as Discretisation
 from ._gradient import AbstractGradient as AbstractGradient
 from ._gradient import CorrectedGradient as CorrectedGradient
 from ._gradient import MinimumPressureGradient as MinimumPressureGradient
 from ._gradient import StandardGradient as StandardGradient
+from ._gradient import SymmetricGradient as SymmetricGradient
 from ._laplacian import AbstractLaplacian as AbstractLaplacian
 from ._laplacian import HigherOrderLaplacian as HigherOrderLaplacian
 from ._laplacian import StandardLaplacian as StandardLaplacian

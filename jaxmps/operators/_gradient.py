@@ -1,4 +1,5 @@
-"""MPS gradients: standard (eq. 2.1-5), corrected (Iribe & Nakaza, eq. 2.3-9)."""
+"""MPS gradients: standard (eq. 2.1-5), corrected (Iribe & Nakaza, eq. 2.3-9) and
+the symmetric pair form (E-MPS, eq. 3.33 of seed 002; bodies)."""
 
 import abc
 
@@ -7,19 +8,20 @@ import jax.numpy as jnp
 from jaxtyping import Array, Bool, Float
 
 from .._numerics import pair_sum, small_determinant, small_inverse, take_rows
+from ._discretisation import Discretisation
 from ._pairs import Pairs
+from ._weight import AbstractWeight, reference_constants
 
 
 class AbstractGradient(eqx.Module):
-    """Gradient of a scalar field from neighbour differences phi_j - phi_i."""
+    """Gradient of a scalar field from the values at neighbours."""
 
     @abc.abstractmethod
     def __call__(
         self,
         pairs: Pairs,
         field: Float[Array, " n"],
-        n0: float,
-        dim: int,
+        disc: Discretisation,
         include: Bool[Array, "n k"],
         select: Bool[Array, "n k"] | None = None,
     ) -> Float[Array, "n d"]:
@@ -29,6 +31,12 @@ class AbstractGradient(eqx.Module):
         itself, i.e. moment matrix and minimum, still comes from `include`): the part
         of the gradient those neighbours contribute. Used to split contact forces.
         """
+
+    def momentum_conserving(self) -> "SymmetricGradient":
+        """The form of this gradient whose pair forces are equal and opposite, for
+        particles whose forces are summed into a body: the symmetric pair form
+        with the discretisation's weight, unless this gradient is one already."""
+        return SymmetricGradient()
 
 
 def _select(w, select):
@@ -49,10 +57,19 @@ class StandardGradient(AbstractGradient):
     Exact for linear fields only on a full regular lattice neighbourhood.
     """
 
-    def __call__(self, pairs, field, n0, dim, include, select=None):
+    def __call__(
+        self,
+        pairs: Pairs,
+        field: Float[Array, " n"],
+        disc: Discretisation,
+        include: Bool[Array, "n k"],
+        select: Bool[Array, "n k"] | None = None,
+    ) -> Float[Array, "n d"]:
         w, diff = _masked(pairs, field, include)
         w = _select(w, select)
-        return (dim / n0) * pair_sum(diff * w / pairs.distance**2, pairs.offset)
+        return (disc.dim / disc.n0) * pair_sum(
+            diff * w / pairs.distance**2, pairs.offset
+        )
 
 
 class MinimumPressureGradient(AbstractGradient):
@@ -64,14 +81,21 @@ class MinimumPressureGradient(AbstractGradient):
     cost of first-order consistency (a uniform offset is no longer ignored exactly).
     """
 
-    def __call__(self, pairs, field, n0, dim, include, select=None):
+    def __call__(
+        self,
+        pairs: Pairs,
+        field: Float[Array, " n"],
+        disc: Discretisation,
+        include: Bool[Array, "n k"],
+        select: Bool[Array, "n k"] | None = None,
+    ) -> Float[Array, "n d"]:
         mask = jnp.logical_and(pairs.valid, include)
         phi_j = take_rows(field, pairs.index)
         phi_min = jnp.min(jnp.where(mask, phi_j, jnp.inf), axis=1)
         phi_hat = jnp.minimum(field, phi_min)
         w = _select(jnp.where(mask, pairs.weight, 0.0), select)
         coefficient = (phi_j - phi_hat[:, None]) * w / pairs.distance**2
-        return (dim / n0) * pair_sum(coefficient, pairs.offset)
+        return (disc.dim / disc.n0) * pair_sum(coefficient, pairs.offset)
 
 
 class CorrectedGradient(AbstractGradient):
@@ -104,7 +128,15 @@ class CorrectedGradient(AbstractGradient):
     # fields, which the shifted form is not).
     minimum_shift: bool = False
 
-    def __call__(self, pairs, field, n0, dim, include, select=None):
+    def __call__(
+        self,
+        pairs: Pairs,
+        field: Float[Array, " n"],
+        disc: Discretisation,
+        include: Bool[Array, "n k"],
+        select: Bool[Array, "n k"] | None = None,
+    ) -> Float[Array, "n d"]:
+        n0, dim = disc.n0, disc.dim
         w, diff = _masked(pairs, field, include)
         if self.minimum_shift:
             mask = jnp.logical_and(pairs.valid, include)
@@ -142,3 +174,41 @@ class CorrectedGradient(AbstractGradient):
             ],
             -1,
         )
+
+
+class SymmetricGradient(AbstractGradient):
+    """The symmetric pair form
+    <grad phi>_i = d/n0_w sum_j (phi_i + phi_j) r_ij / |r_ij|^2 w(|r_ij|),
+    whose pair terms are equal and opposite, so that summed over a body the forces
+    of its internal pairs cancel and the net force is exactly that of the pairs
+    across its surface (action equals reaction pair by pair).
+
+    With `weight`, its own kernel and n0_w (the E-MPS gradient of seed 002 eq. 3.33
+    with `EMPSGradientWeight()`); without, the discretisation's weight and n0.
+
+    Attributes:
+        weight: the kernel of this gradient, or None for the discretisation's.
+    """
+
+    weight: AbstractWeight | None = None
+
+    def momentum_conserving(self) -> "SymmetricGradient":
+        return self
+
+    def __call__(
+        self,
+        pairs: Pairs,
+        field: Float[Array, " n"],
+        disc: Discretisation,
+        include: Bool[Array, "n k"],
+        select: Bool[Array, "n k"] | None = None,
+    ) -> Float[Array, "n d"]:
+        mask = jnp.logical_and(pairs.valid, include)
+        if self.weight is None:
+            w, n0 = jnp.where(mask, pairs.weight, 0.0), disc.n0
+        else:
+            w = self.weight(pairs.distance, mask, disc.r_e)
+            n0, _ = reference_constants(self.weight, disc.dim, disc.r_e / disc.spacing)
+        w = _select(w, select)
+        total = take_rows(field, pairs.index) + field[:, None]
+        return (disc.dim / n0) * pair_sum(total * w / pairs.distance**2, pairs.offset)

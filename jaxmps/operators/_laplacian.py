@@ -7,6 +7,7 @@ import jax.numpy as jnp
 from jaxtyping import Array, Float
 
 from .._numerics import pair_differences, pair_sum, take_rows
+from ._discretisation import Discretisation
 from ._pairs import Pairs
 from ._weight import AbstractWeight, lattice_sum
 
@@ -45,15 +46,19 @@ class AbstractLaplacian(eqx.Module):
     coefficients c_ij = c_ji >= 0 and a constant factor f > 0, so that the pressure
     Poisson matrix built from c is symmetric positive definite.
 
-    `scene` supplies the static constants: dim, spacing, r_e, n0, lam, weight.
+    The `Discretisation` supplies the constants: dim, spacing, r_e, n0, lam, weight.
     """
 
     @abc.abstractmethod
-    def coefficients(self, pairs: Pairs, scene) -> tuple[Float[Array, "n k"], float]:
+    def coefficients(
+        self, pairs: Pairs, disc: Discretisation
+    ) -> tuple[Float[Array, "n k"], float]:
         """(c_ij, f); c is zero where the pair is not valid."""
 
-    def __call__(self, pairs: Pairs, field: Float[Array, " n *c"], scene):
-        coefficient, factor = self.coefficients(pairs, scene)
+    def __call__(
+        self, pairs: Pairs, field: Float[Array, " n *c"], disc: Discretisation
+    ) -> Float[Array, " n *c"]:
+        coefficient, factor = self.coefficients(pairs, disc)
         return pair_laplacian(coefficient, factor, pairs, field)
 
 
@@ -61,8 +66,10 @@ class StandardLaplacian(AbstractLaplacian):
     """Koshizuka & Oka's Laplacian: c_ij = w_ij, f = 2d / (lambda n0) (eq. 2.1-6).
     Exact for |r|^2 on the reference lattice by construction of lambda."""
 
-    def coefficients(self, pairs, scene):
-        return pairs.weight, 2.0 * scene.dim / (scene.lam * scene.n0)
+    def coefficients(
+        self, pairs: Pairs, disc: Discretisation
+    ) -> tuple[Float[Array, "n k"], float]:
+        return pairs.weight, 2.0 * disc.dim / (disc.lam * disc.n0)
 
 
 def _higher_order_kernel(weight: AbstractWeight, r, r_e, dim: int):
@@ -94,25 +101,27 @@ class HigherOrderLaplacian(AbstractLaplacian):
     # printed pair acts as an under-relaxed one. So the default is the print.
     normalised: bool = False
 
-    def coefficients(self, pairs, scene):
-        r_e, dim = scene.r_e, scene.dim
+    def coefficients(
+        self, pairs: Pairs, disc: Discretisation
+    ) -> tuple[Float[Array, "n k"], float]:
+        r_e, dim = disc.r_e, disc.dim
         safe_r = jnp.where(pairs.valid, pairs.distance, r_e)
-        kernel = _higher_order_kernel(scene.weight, safe_r, r_e, dim)
+        kernel = _higher_order_kernel(disc.weight, safe_r, r_e, dim)
         # Choice: the 3-D Wendland kernel w'' is negative for r < r_e / 4 (closer
         # than 0.6 l0 at r_e = 2.4 l0); such pairs are clipped to c = 0 so that the
         # pressure matrix stays an M-matrix (SPD). They do not occur on a lattice.
         c = jnp.where(pairs.valid, jnp.maximum(kernel, 0.0), 0.0)
-        return c, self.factor(scene)
+        return c, self.factor(disc)
 
-    def factor(self, scene) -> float:
+    def factor(self, disc: Discretisation) -> float:
         if not self.normalised:
-            return 1.0 / scene.n0
-        ratio = scene.r_e / scene.spacing
+            return 1.0 / disc.n0
+        ratio = disc.r_e / disc.spacing
 
         def moment(r, offsets):
             del offsets
-            k = _higher_order_kernel(scene.weight, r, ratio, scene.dim)
+            k = _higher_order_kernel(disc.weight, r, ratio, disc.dim)
             return r**2 * k
 
         # Lattice sum at unit spacing: c r^2 is scale-free.
-        return 2.0 * scene.dim / lattice_sum(moment, scene.dim, ratio)
+        return 2.0 * disc.dim / lattice_sum(moment, disc.dim, ratio)

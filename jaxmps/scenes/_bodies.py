@@ -59,7 +59,7 @@ def _body_case(config, fluid, box, walls, wall_kind, domain, speed, orientation)
     # A rotating body fills cells differently from the initial lattice: allow the
     # densest lattice packing of a particle's stencil box (5 cells of
     # (r_e + skin) / 2 a side), with margin.
-    stencil_box = 2.5 * (discretisation(config)["r_e"] + NEIGHBOUR_SKIN)
+    stencil_box = 2.5 * (discretisation(config).r_e + NEIGHBOUR_SKIN)
     scene = case_scene(
         config,
         position,
@@ -68,7 +68,7 @@ def _body_case(config, fluid, box, walls, wall_kind, domain, speed, orientation)
     )
     params = case_params(config, dim, speed)
     state = make_state(scene, position, kind)
-    friction = config.get("friction", "default")
+    friction = config.get("friction", Coulomb())
     return add_rigid_bodies(
         scene,
         params,

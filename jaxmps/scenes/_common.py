@@ -8,8 +8,7 @@ import numpy as np
 from .. import geometry, schemes
 from .._build import make_params, make_scene, make_state
 from .._types import Kind
-from ..fluid import Explicit, Jacobi, Multigrid, SemiImplicit
-from ..operators import EMPSWeight
+from ..fluid import Jacobi, Multigrid, SemiImplicit
 
 # Overrides every scene accepts, with their defaults (None: scene-specific).
 COMMON = {
@@ -134,11 +133,11 @@ def default_dt(config: dict, velocity_scale: float) -> float:
     return float(dt)
 
 
-def discretisation(config: dict) -> dict:
-    """`make_scene` keywords (r_e, weight, Laplacian, gradient, solver) of the
-    `solver` and `scheme` settings."""
+def discretisation(config: dict) -> schemes.Scheme:
+    """The `Scheme` of the `solver` and `scheme` settings (with the pressure-solve
+    settings `rtol`, `max_iterations`, `preconditioner`)."""
     if config["solver"] == "explicit":
-        return dict(r_e=2.1, weight=EMPSWeight(), solver=Explicit())
+        return schemes.explicit()
     solver = SemiImplicit(
         rtol=config["rtol"],
         max_iterations=int(config["max_iterations"]),
@@ -153,7 +152,7 @@ def discretisation(config: dict) -> dict:
 
 def boundary_layers(config: dict) -> int:
     """Wall + dummy layers that give a wall particle a full neighbourhood."""
-    return geometry.layers_for(discretisation(config)["r_e"])
+    return geometry.layers_for(discretisation(config).r_e)
 
 
 def case_scene(
@@ -171,7 +170,7 @@ def case_scene(
         capacity=capacity,
         max_neighbours=config["max_neighbours"],
         candidate_capacity=candidate_capacity if setting is None else setting,
-        **discretisation(config),
+        scheme=discretisation(config),
     )
 
 

@@ -1,0 +1,119 @@
+"""Trace-time checks that a Scene, Params and State belong together and can run
+(ValueError naming the setting to change). Run before tracing by `step`,
+`simulate` and the sweeps; inside a user's own `jit` or `vmap` the values are
+tracers, and the run-time result codes apply instead."""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from ._numerics import is_concrete
+from ._params import Params
+from ._scene import Scene
+from ._state import State
+
+
+def check_compatible(scene: Scene, params: Params, state: State) -> None:
+    """Trace-time check that Scene, Params and State belong together (ValueError)."""
+    n, d = state.position.shape[-2:]
+    if (n, d) != (scene.capacity, scene.dim):
+        raise ValueError(
+            f"State holds {n} particles in {d}-D but the Scene expects "
+            f"{scene.capacity} in {scene.dim}-D; build both from the same case."
+        )
+    _check_params_shapes(scene, params)
+    scene.solver.check_params(scene.discretisation, params)
+    if (scene.inflow is None) != (params.inflow is None):
+        raise ValueError(
+            "Scene.inflow and Params.inflow must both be set or both be None."
+        )
+    if (scene.motion is None) != (params.motion is None):
+        raise ValueError(
+            "Scene.motion and Params.motion must both be set or both be None."
+        )
+    if (scene.rigid is None) != (params.rigid is None) or (scene.rigid is None) != (
+        state.rigid is None
+    ):
+        raise ValueError(
+            "Scene.rigid, Params.rigid and State.rigid must all be set or all be None; "
+            "build them together with `jaxmps.add_rigid_bodies`."
+        )
+    if scene.rigid is not None:
+        b = scene.rigid.count
+        shapes = {
+            "Params.rigid.density": params.rigid.density.shape,
+            "Params.rigid.mu_static": params.rigid.mu_static.shape,
+            "Params.rigid.mu_kinetic": params.rigid.mu_kinetic.shape,
+            "State.rigid.centre": state.rigid.centre.shape[-2:-1],
+        }
+        for name, shape in shapes.items():
+            if shape != (b,):
+                raise ValueError(
+                    f"{name} has shape {shape} but the Scene has {b} rigid bodies "
+                    f"(expected ({b},)). For a batch of values use `jaxmps.sweep` "
+                    "or `jax.vmap` over Params."
+                )
+    _check_viscous_limit(scene, params)
+    _check_finite(state)
+
+
+def _check_params_shapes(scene: Scene, params: Params) -> None:
+    """One parameter set: scalars, and gravity with one component per axis (inside
+    `vmap` the shapes seen here are those of one batch member)."""
+    expected = {name: () for name in ("density", "viscosity", "dt", "beta")}
+    expected["sound_speed"] = ()
+    expected["gravity"] = (scene.dim,)
+    for name, shape in expected.items():
+        got = tuple(getattr(params, name).shape)
+        if got != shape:
+            hint = (
+                f"the Scene is {scene.dim}-D"
+                if name == "gravity" and len(got) == 1
+                else "simulate takes one parameter set; for a batch of values use "
+                "`jaxmps.sweep` or `jax.vmap` over Params"
+            )
+            raise ValueError(
+                f"Params.{name} has shape {got}, expected {shape}: {hint}."
+            )
+
+
+def _check_viscous_limit(scene: Scene, params: Params) -> None:
+    """Refuse concrete (dt, viscosity) beyond `Scene.viscous_limit` (ValueError);
+    traced values are checked every step instead (`Result.step_too_large`)."""
+    values = (params.dt, params.viscosity)
+    if not is_concrete(*values):
+        return
+    dt, nu = (np.asarray(v, dtype=float) for v in values)
+    number = np.max(2 * scene.dim * nu * dt / scene.lam)
+    if number > scene.viscous_limit:
+        worst = float(np.max(nu))
+        raise ValueError(
+            f"dt={float(np.max(dt)):.4g} s with viscosity={worst:.4g} m^2/s exceeds "
+            "the viscous stability limit 2 d nu dt / lambda <= "
+            f"{scene.viscous_limit:g} "
+            f"(dt <= {scene.max_viscous_dt(worst):.4g} s at this viscosity and "
+            f"spacing {scene.spacing:g} m). Reduce `dt` or `viscosity`, or raise "
+            "`make_scene(viscous_limit=...)` at your own risk."
+        )
+
+
+def _check_finite(state: State) -> None:
+    """Refuse a concrete initial State with non-finite positions or velocities of
+    active particles (inside jit or vmap the run-time `Result.nonfinite_state`
+    applies)."""
+    fields = {"position": state.position, "velocity": state.velocity}
+    if not is_concrete(*fields.values(), state.active):
+        return
+    for name, value in fields.items():
+        # Concrete arrays, possibly captured by a user's jit: evaluate eagerly and
+        # bring one scalar to the host unless something is wrong.
+        with jax.ensure_compile_time_eval():
+            finite = jnp.all(jnp.isfinite(value), axis=-1) | ~state.active
+            if bool(jnp.all(finite)):
+                continue
+        bad = np.nonzero(~np.asarray(finite))[-1]
+        raise ValueError(
+            f"State.{name} is not finite for {bad.size} active particle(s) "
+            f"(first indices {bad[:5].tolist()}); fix the initial state, or restart "
+            "from the last good state of a run file (`jaxmps run --restart`)."
+        )

@@ -1,0 +1,77 @@
+"""The two records that pass between the fluid stages and the body stages of a step.
+
+Bodies → fluid (`Coupling`, built before the fluid stages): the mass density each
+particle is advanced with, and which particles belong to one body, so that the fluid
+exerts no viscous or pressure force between two particles of the same body (its
+internal forces are the body model's business) and gives body particles the
+momentum-conserving form of the pressure gradient.
+
+Fluid → bodies (`FluidLoad`, built by the pressure-force stage): the pair geometry
+the pressure acted on, the pressure gradient applied to every particle, and the part
+of it that wall particles exerted on body particles (the contact reaction, which the
+friction laws need).
+
+Neither side reads or writes the other's state: a new body model (elastic bodies,
+grains) contributes its part of a `Coupling` and reads a `FluidLoad`.
+"""
+
+import equinox as eqx
+import jax.numpy as jnp
+from jaxtyping import Array, Bool, Float, Int
+
+from ._numerics import take_rows
+from .operators import Pairs
+
+
+class Coupling(eqx.Module):
+    """What the body models impose on the fluid stages of one step.
+
+    Attributes:
+        density: mass density each particle is advanced with [kg/m^3]: its body's
+            density for body particles, the fluid density elsewhere, shape (n,).
+        owner: the body each particle belongs to, -1 for none, shape (n,). Owners
+            are unique across body models (each model numbers its bodies from its
+            own offset).
+    """
+
+    density: Float[Array, " n"]
+    owner: Int[Array, " n"]
+
+    @property
+    def owned(self) -> Bool[Array, " n"]:
+        """Particles that belong to a body."""
+        return self.owner >= 0
+
+    def internal(self, pairs: Pairs) -> Bool[Array, "n k"]:
+        """Pairs (i, j) of two particles of one body."""
+        partner = take_rows(self.owner + 1, pairs.index) - 1  # sentinel reads -1
+        return (self.owner[:, None] >= 0) & (partner == self.owner[:, None])
+
+    def without_internal(self, pairs: Pairs) -> Pairs:
+        """`pairs` with zero weight between two particles of one body (for the
+        viscous term: a rigid body has no internal viscosity, and the pairwise MPS
+        Laplacian of a rigid rotation is not zero at its surface, so left in it
+        would brake a spinning body with a spurious internal torque)."""
+        weight = jnp.where(self.internal(pairs), 0.0, pairs.weight)
+        return eqx.tree_at(lambda p: p.weight, pairs, weight)
+
+
+class FluidLoad(eqx.Module):
+    """What the fluid exerted on the particles in one step.
+
+    The pressure force on a particle of volume l0^d is -l0^d `gradient`; for body
+    particles `gradient` is the symmetric pair form over particles outside the body
+    (`operators.SymmetricGradient`), so summed over a body it is exactly the force of
+    the pairs across its surface.
+
+    Attributes:
+        pairs: the pair geometry at the predicted positions r* the pressure acted on.
+        gradient: the pressure gradient each particle was corrected with [Pa/m],
+            shape (n, d).
+        wall_gradient: the part of `gradient` that wall particles contributed to
+            body particles (zero for other particles) [Pa/m], shape (n, d).
+    """
+
+    pairs: Pairs
+    gradient: Float[Array, "n d"]
+    wall_gradient: Float[Array, "n d"]

@@ -1,0 +1,90 @@
+"""The pressure stage: what distinguishes the semi-implicit and explicit solvers."""
+
+import abc
+
+import equinox as eqx
+from jaxtyping import Array, Bool, Float, Int
+
+from .._params import Params
+from .._types import Field, Kinds, Mask, Velocities
+from ..neighbours import Grid
+from ..operators import AbstractLaplacian, Discretisation, Pairs
+
+
+class PressureInputs(eqx.Module):
+    """What a pressure stage may use.
+
+    Attributes:
+        pairs: pair geometry at the tentative positions r*.
+        n_star: particle number density at r*.
+        position: the tentative positions r* [m].
+        velocity: the tentative velocities u* [m/s].
+        surface: free-surface flags at r* (all False without a surface model).
+        pairs_k: pair geometry at the start of the step (r^k).
+        velocity_k: velocities at the start of the step u^k [m/s].
+        pressure_k: the pressures of the previous step [Pa] (a warm start).
+        kind, active: the particles' kinds and active flags.
+    """
+
+    pairs: Pairs
+    n_star: Field
+    position: Float[Array, "n d"]
+    velocity: Velocities
+    surface: Mask
+    pairs_k: Pairs
+    velocity_k: Velocities
+    pressure_k: Field
+    kind: Kinds
+    active: Mask
+
+
+class PressureSolution(eqx.Module):
+    """The pressure of a step and the stage's diagnostics.
+
+    Attributes:
+        pressure: pressure of every particle [Pa] (0 on the free surface).
+        free: particles held at zero pressure as free surface.
+        iterations: linear-solver iterations (0 for the explicit stage).
+        residual: final relative residual of the linear solve (0 if none).
+        converged: whether the solve reached its tolerance (True if none).
+        unstable: a stage-specific stability limit was exceeded this step.
+    """
+
+    pressure: Field
+    free: Mask
+    iterations: Int[Array, ""]
+    residual: Float[Array, ""]
+    converged: Bool[Array, ""]
+    unstable: Bool[Array, ""]
+
+
+class AbstractPressureSolver(eqx.Module):
+    """How the pressure of a step is found: a pressure Poisson equation
+    (`SemiImplicit`) or an equation of state (`Explicit`). Every other stage of a
+    step is shared by both (`jaxmps.step`).
+
+    Attributes:
+        needs_surface: whether the stage needs free-surface flags (a Scene with
+            this solver must have a `FreeSurface` model).
+    """
+
+    needs_surface: eqx.AbstractClassVar[bool]
+
+    @abc.abstractmethod
+    def __call__(
+        self,
+        disc: Discretisation,
+        laplacian: AbstractLaplacian,
+        grid: Grid,
+        params: Params,
+        inputs: PressureInputs,
+    ) -> PressureSolution:
+        """The pressure at r*."""
+
+    def check_params(self, disc: Discretisation, params: Params) -> None:
+        """Refuse, before any tracing, Params this solver cannot run (ValueError).
+
+        Only concrete values are checked; traced ones (inside jit or vmap) are left
+        to the run-time result codes.
+        """
+        del disc, params
