@@ -107,7 +107,7 @@ def main():
     lines += [
         "",
         "A scene without bodies compiles no body code at all (no `rigid` stage in "
-        "its program; see tests/test_rigid.py, "
+        "its program; see tests/test_pipeline.py, "
         "test_scene_without_bodies_compiles_no_body_code).",
     ]
     (HERE / "results" / "rigid_cost_cpu.md").write_text("\n".join(lines) + "\n")

@@ -1,3 +1,7 @@
+"""Neighbour lists: equal to brute force in any particle order, overflow and
+out-of-domain flags, the sort, and the lists carried between steps (when they are
+reused, when searched again, and the joint decision of a batch)."""
+
 import jax
 import jax.numpy as jnp
 import numpy as np

@@ -1,3 +1,7 @@
+"""MPS operators on lattices and irregular clouds: n0 and lambda, weights at zero
+and on padded slots, exact gradients of linear fields, the Laplacian of |r|^2, and
+the small-matrix and pair-sum helpers."""
+
 import jax
 import jax.numpy as jnp
 import numpy as np

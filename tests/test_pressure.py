@@ -1,3 +1,7 @@
+"""The pressure Poisson equation: a symmetric positive definite operator solved by
+CG (against a dense solve), its implicit gradient, float32 backward solves, the
+discrete gain bound, and the multigrid preconditioner."""
+
 import jax
 import jax.numpy as jnp
 import numpy as np
