@@ -1,10 +1,14 @@
-"""Helpers shared by the benchmark scripts: machine description and load average."""
+"""Helpers shared by the benchmark (and validation) scripts: the machine
+description, the load average and the compile-and-time harness."""
 
+import dataclasses
+import math
 import os
 import platform
 import subprocess
 import time
 from pathlib import Path
+from typing import Any
 
 import equinox as eqx
 import jax
@@ -98,3 +102,65 @@ def result_name(result) -> str:
         if bool(result == getattr(jaxmps.Result, name)):
             return name
     return str(result)
+
+
+@dataclasses.dataclass
+class Timed:
+    """A compiled program, its first output and its timings [s]."""
+
+    output: Any
+    compiled: Any
+    trace_lower_s: float
+    compile_s: float
+    warmup_s: float
+    run_s_all: list[float]
+
+    @property
+    def run_s_best(self) -> float:
+        return min(self.run_s_all)
+
+    def timing(self) -> dict:
+        """The timings as a JSON-ready dict."""
+        return {
+            "trace_lower_s": self.trace_lower_s,
+            "compile_s": self.compile_s,
+            "warmup_s": self.warmup_s,
+            "run_s_all": self.run_s_all,
+            "run_s_best": self.run_s_best,
+        }
+
+
+def time_compiled(lower, *args, repeats: int = 3, max_timed_s=math.inf, **kwargs):
+    """Compile a program and time it the way every script here does: lower it and
+    compile it (both timed, apart from running), one untimed warm-up call, then the
+    best of `repeats` timed calls, each ended by `jax.block_until_ready`; only one
+    timed call when the warm-up took longer than `max_timed_s`.
+
+    Args:
+        lower: returns the lowered program for `(*args, **kwargs)`, e.g.
+            `jaxmps.lower_simulate` or `eqx.filter_jit(fn).lower`; the compiled
+            program is called with the same arguments.
+
+    Returns:
+        A `Timed`: the warm-up call's output, the compiled program, the timings.
+    """
+    t0 = time.perf_counter()
+    lowered = lower(*args, **kwargs)
+    t1 = time.perf_counter()
+    compiled = lowered.compile()
+    t2 = time.perf_counter()
+    out = jax.block_until_ready(compiled(*args, **kwargs))
+    t3 = time.perf_counter()
+    times = []
+    for _ in range(1 if t3 - t2 > max_timed_s else repeats):
+        start = time.perf_counter()
+        jax.block_until_ready(compiled(*args, **kwargs))
+        times.append(time.perf_counter() - start)
+    return Timed(
+        output=out,
+        compiled=compiled,
+        trace_lower_s=t1 - t0,
+        compile_s=t2 - t1,
+        warmup_s=t3 - t2,
+        run_s_all=times,
+    )

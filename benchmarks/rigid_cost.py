@@ -3,7 +3,7 @@
 The same particles are run twice per scene: with the box as a rigid body, and with
 the rigid component removed (the box's particles become fluid, so the step program
 has no body code). Compile time and run time are reported separately; run times are
-the second of two identical calls, median of three repeats.
+the best of three calls after an untimed one (`_common.time_compiled`).
 
 Run: python benchmarks/rigid_cost.py  (writes results/rigid_cost_cpu.{json,md})
 """
@@ -11,12 +11,9 @@ Run: python benchmarks/rigid_cost.py  (writes results/rigid_cost_cpu.{json,md})
 import dataclasses
 import json
 import pathlib
-import statistics
-import time
 
-import jax
 import jax.numpy as jnp
-from _common import loadavg, machine_info
+from _common import loadavg, machine_info, time_compiled
 
 import jaxmps
 
@@ -34,25 +31,18 @@ def without_bodies(case):
 
 
 def measure(scene, params, state, n_steps):
-    t0 = time.perf_counter()
-    compiled = jaxmps.lower_simulate(
-        scene, params, state, n_steps, n_steps, jaxmps.frame, throw=False
-    ).compile()
-    compile_s = time.perf_counter() - t0
-
-    def call():
-        return jax.block_until_ready(
-            jaxmps.simulate(scene, params, state, n_steps, n_steps, throw=False).state
-        )
-
-    call()
-    runs = []
-    for _ in range(3):
-        t0 = time.perf_counter()
-        call()
-        runs.append(time.perf_counter() - t0)
-    del compiled
-    return compile_s, statistics.median(runs)
+    """(compile [s], best of 3 runs [s])."""
+    timed = time_compiled(
+        jaxmps.lower_simulate,
+        scene,
+        params,
+        state,
+        n_steps,
+        n_steps,
+        jaxmps.frame,
+        throw=False,
+    )
+    return timed.trace_lower_s + timed.compile_s, timed.run_s_best
 
 
 def main():
@@ -90,7 +80,7 @@ def main():
         "# Rigid-body component: cost as a fraction of step time (CPU)",
         "",
         f"{info['cpu_model']}, {info['cpu_usable']} cores, jax {info['jax']}, "
-        f"{info['dtype']}; {n_steps} steps, run time median of 3 (second calls).",
+        f"{info['dtype']}; {n_steps} steps, run time best of 3 after a warm-up call.",
         "",
         "| scene | particles | body particles | compile with / without [s] | "
         "run with / without [s] | rigid share of step | particle-steps/s |",

@@ -43,7 +43,8 @@ def spacing_for(target: int, dim: int, solver: str) -> float:
 
 
 def measure(solver: str, target: int, steps: int, dim: int = 2) -> dict:
-    from step_throughput import _best_of, _lower_compile, observe_time
+    from _common import time_compiled
+    from step_throughput import observe_time
 
     import jaxmps
 
@@ -52,9 +53,9 @@ def measure(solver: str, target: int, steps: int, dim: int = 2) -> dict:
     scene, params = case.scene, case.params
     state = jaxmps.simulate(scene, params, case.state, 20, 20, throw=False).state
     args = (scene, params, state, steps, steps, observe_time)
-    compiled, lower_s, xla_s = _lower_compile(jaxmps.simulate, *args, throw=False)
-    compile_s = lower_s + xla_s
-    run, _, _ = _best_of(lambda: compiled(*args, throw=False), 2)
+    timed = time_compiled(jaxmps.lower_simulate, *args, repeats=2, throw=False)
+    compile_s = timed.trace_lower_s + timed.compile_s
+    run = timed.run_s_best
     _, info = eqx.filter_jit(jaxmps.step)(scene, params, state)
 
     def build(x):
@@ -73,7 +74,7 @@ def measure(solver: str, target: int, steps: int, dim: int = 2) -> dict:
     searches = 1 if scene.neighbour_skin > 0 else 2
 
     jitted = jax.jit(build)
-    build_s, _, _ = _best_of(lambda: jitted(state.position), 5)
+    build_s = time_compiled(jitted.lower, state.position, repeats=5).run_s_best
     ms = 1e3 * run / steps
     row = {
         "dim": dim,

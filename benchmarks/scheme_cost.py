@@ -6,7 +6,8 @@ seed 001's standard MPS (`jaxmps.schemes.standard_mps`, the baseline the seed
 measures against) and each rung of `jaxmps.schemes.LADDER`: standard -> HS ->
 HS-HL -> HS-HL-ECS -> HS-HL-ECS-GC-DS -> high_accuracy (+ Wendland), and with the
 lattice-normalised HS/HL pair. Compile time and run time are separate; the run time
-is the median of three calls after an untimed one. Reported per rung: ms/step, the
+is the best of three calls after an untimed one (`_common.time_compiled`).
+Reported per rung: ms/step, the
 step time relative to the standard rung, and the bottom-pressure error and noise
 (mean and standard deviation over t >= 0.5 s of the `pressure_bottom` probe,
 relative to rho g (H - l0/2 - l0/2)).
@@ -16,13 +17,10 @@ Run: python benchmarks/scheme_cost.py  (writes results/scheme_cost_cpu.{json,md}
 
 import json
 import pathlib
-import statistics
-import time
 
 import equinox as eqx
-import jax
 import numpy as np
-from _common import loadavg, machine_info
+from _common import loadavg, machine_info, time_compiled
 
 import jaxmps
 
@@ -51,26 +49,18 @@ def rung_scene(case, discretisation):
 
 
 def measure(scene, params, state, n_steps, save_every, observe):
-    t0 = time.perf_counter()
-    jaxmps.lower_simulate(
-        scene, params, state, n_steps, save_every, observe, throw=False
-    ).compile()
-    compile_s = time.perf_counter() - t0
-
-    def call():
-        return jax.block_until_ready(
-            jaxmps.simulate(
-                scene, params, state, n_steps, save_every, observe, throw=False
-            )
-        )
-
-    tr = call()
-    runs = []
-    for _ in range(3):
-        t0 = time.perf_counter()
-        call()
-        runs.append(time.perf_counter() - t0)
-    return compile_s, statistics.median(runs), tr
+    """(compile [s], best of 3 runs [s], trajectory)."""
+    timed = time_compiled(
+        jaxmps.lower_simulate,
+        scene,
+        params,
+        state,
+        n_steps,
+        save_every,
+        observe,
+        throw=False,
+    )
+    return timed.trace_lower_s + timed.compile_s, timed.run_s_best, timed.output
 
 
 def main():

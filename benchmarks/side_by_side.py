@@ -127,14 +127,8 @@ def jaxmps_worker(
 
     jax.config.update("jax_enable_x64", dtype == "float64")
     import jax.numpy as jnp
-    from _common import loadavg
-    from step_throughput import (
-        _best_of,
-        _lower_compile,
-        _memory_analysis_mib,
-        _rss_mib,
-        observe_time,
-    )
+    from _common import loadavg, time_compiled
+    from step_throughput import _memory_analysis_mib, _rss_mib, observe_time
 
     import jaxmps
 
@@ -144,10 +138,16 @@ def jaxmps_worker(
     n_fluid = int(jnp.sum(state.kind == int(jaxmps.Kind.FLUID)))
     args = (scene, params, state, n_steps, None, observe_time)
     kwargs = dict(throw=False)
-    compiled, t_lower, t_compile = _lower_compile(jaxmps.simulate, *args, **kwargs)
-    best, times, traj = _best_of(
-        lambda: compiled(*args, **kwargs), repeats, max_timed_s
+    timed = time_compiled(
+        jaxmps.lower_simulate,
+        *args,
+        repeats=repeats,
+        max_timed_s=max_timed_s,
+        **kwargs,
     )
+    traj, compiled = timed.output, timed.compiled
+    t_lower, t_compile = timed.trace_lower_s, timed.compile_s
+    best, times = timed.run_s_best, timed.run_s_all
     dt = float(params.dt)
     fluid = traj.state.kind == int(jaxmps.Kind.FLUID)
     speed = jnp.linalg.norm(traj.state.velocity, axis=1)

@@ -42,7 +42,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 from _common import loadavg as _loadavg
-from _common import machine_info
+from _common import machine_info, time_compiled
 
 import jaxmps
 
@@ -98,33 +98,6 @@ def _memory_analysis_mib(compiled: eqx.Module) -> dict | None:
     return out or None
 
 
-def _lower_compile(fn, *args, **kwargs):
-    """(compiled, trace+lower seconds, compile seconds) for an `eqx.filter_jit` fn."""
-    t0 = time.perf_counter()
-    lowered = fn.lower(*args, **kwargs)
-    t1 = time.perf_counter()
-    compiled = lowered.compile()
-    t2 = time.perf_counter()
-    return compiled, t1 - t0, t2 - t1
-
-
-def _best_of(
-    call, repeats: int, max_timed_s: float = float("inf")
-) -> tuple[float, list[float], object]:
-    """Untimed warm-up call, then the best of `repeats` timed calls [s]; only one
-    timed call when the warm-up took longer than `max_timed_s`."""
-    t0 = time.perf_counter()
-    out = jax.block_until_ready(call())
-    if time.perf_counter() - t0 > max_timed_s:
-        repeats = 1
-    times = []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        out = jax.block_until_ready(call())
-        times.append(time.perf_counter() - t0)
-    return min(times), times, out
-
-
 def _memory_record(baseline_rss: float) -> dict:
     device_peak = _device_peak_mib()
     peak_rss = _rss_mib()
@@ -166,9 +139,10 @@ def throughput_case(spacing: float, n_steps: int, repeats: int) -> dict:
     baseline_rss = _rss_mib()
 
     args = (scene, params, state, n_steps, None, observe_time)
-    kwargs = dict(throw=False)
-    compiled, t_lower, t_compile = _lower_compile(jaxmps.simulate, *args, **kwargs)
-    best, times, traj = _best_of(lambda: compiled(*args, **kwargs), repeats)
+    timed = time_compiled(jaxmps.lower_simulate, *args, repeats=repeats, throw=False)
+    traj, compiled = timed.output, timed.compiled
+    t_lower, t_compile = timed.trace_lower_s, timed.compile_s
+    best, times = timed.run_s_best, timed.run_s_all
     result = str(traj.result)
     rollout_ok = bool(traj.result == jaxmps.Result.successful)
     simulated = float(traj.state.time)
@@ -227,10 +201,12 @@ def gradient_case(spacing: float, n_steps: int, repeats: int) -> dict:
     baseline_rss = _rss_mib()
     args = (params, scene, state, n_steps, save_every)
 
-    fwd, fwd_lower, fwd_compile = _lower_compile(forward_fn, *args)
-    fwd_best, fwd_times, loss = _best_of(lambda: fwd(*args), repeats)
-    grd, grd_lower, grd_compile = _lower_compile(gradient_fn, *args)
-    grd_best, grd_times, grads = _best_of(lambda: grd(*args), repeats)
+    fwd = time_compiled(forward_fn.lower, *args, repeats=repeats)
+    fwd_lower, fwd_compile, loss = fwd.trace_lower_s, fwd.compile_s, fwd.output
+    fwd_best, fwd_times = fwd.run_s_best, fwd.run_s_all
+    grd = time_compiled(gradient_fn.lower, *args, repeats=repeats)
+    grd_lower, grd_compile, grads = grd.trace_lower_s, grd.compile_s, grd.output
+    grd_best, grd_times = grd.run_s_best, grd.run_s_all
 
     leaves = jax.tree_util.tree_leaves(grads)
     finite = all(bool(jnp.all(jnp.isfinite(g))) for g in leaves)

@@ -27,7 +27,7 @@ class Explicit(AbstractPressureSolver):
 
     Attributes:
         sound_courant: largest c dt / l0 accepted. Seed 002 eq. 3.40 allows 1.0;
-            measured (benchmarks/stability_map.py, a 0.2 m hydrostatic tank at
+            measured (validation/stability_map.py, a 0.2 m hydrostatic tank at
             l0 = 1 cm), runs at 0.9-1.0 stay finite but their bottom pressure is off
             by 7-35 % (the equation-of-state pressure rings), while up to 0.8 it is
             within 1.2 %; so 0.8 by default.

@@ -140,7 +140,7 @@ class HigherOrderSource(AbstractSource):
         gamma: relaxation coefficient of the number-density term (1e-3 in seed 001,
             run there at dt = 2.5e-4 s). It is a relaxation per step, so at larger
             dt it restores the density more slowly per second. Measured with the
-            full scheme at l0 = 1 cm, dt = 1 ms, 2 s (benchmarks/conservation.py):
+            full scheme at l0 = 1 cm, dt = 1 ms, 2 s (validation/conservation.py):
             gamma = 1e-3 lets the fluid compress by 3 % (hydrostatic) to 7 %
             (standing wave) with the level sinking 4-7 mm; 0.01 gives 0.15-1 %;
             0.05 keeps it within 0.1 % (and quarters the bottom-pressure noise) but

@@ -14,7 +14,7 @@ Observed every 10 steps:
   symmetry; walls act on the fluid, so it is not conserved exactly, but a
   spurious drift shows here).
 
-Run: python benchmarks/conservation.py  (writes results/conservation_cpu.{json,md})
+Run: python validation/conservation.py  (writes results/conservation_cpu.{json,md})
 """
 
 import json

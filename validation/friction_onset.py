@@ -8,7 +8,7 @@ sliding ratio. The sliding distance is compared with g (sin - mu cos) T^2 / 2.
 2-D: 1 m block, l0 = 0.1 m, mu = 0.2, 0.4, 0.6, 0.8, r = 0.97, 0.99, 1.01, 1.03, 2.
 3-D: 1 m cube, l0 = 0.2 m, mu = 0.5, r = 0.9, 0.95, 1.05, 1.5, 2.
 
-Run: python benchmarks/friction_onset.py  (writes results/friction_onset_cpu.{json,md})
+Run: python validation/friction_onset.py  (writes results/friction_onset_cpu.{json,md})
 """
 
 import json

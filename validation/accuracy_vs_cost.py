@@ -34,11 +34,11 @@ ended by `jax.block_until_ready`. Reported: wall time per simulated second
 / run), and the default time step `case.params.dt` of each solver.
 
 Usage:
-    python benchmarks/accuracy_vs_cost.py               # everything (~10 min, 2 CPU)
-    python benchmarks/accuracy_vs_cost.py --levels 0 1         # skip the finest level
-    python benchmarks/accuracy_vs_cost.py --cases dam_break --solvers explicit
+    python validation/accuracy_vs_cost.py               # everything (~10 min, 2 CPU)
+    python validation/accuracy_vs_cost.py --levels 0 1         # skip the finest level
+    python validation/accuracy_vs_cost.py --cases dam_break --solvers explicit
 
-Writes `benchmarks/results/accuracy_vs_cost_<cpu|gpu>.{json,md,png}` (override with
+Writes `validation/results/accuracy_vs_cost_<cpu|gpu>.{json,md,png}` (override with
 `--out`, a path without extension). `--replot` redraws the MD/PNG from the JSON.
 """
 
@@ -584,7 +584,7 @@ def main(argv=None):
         type=Path,
         default=None,
         help="output path without extension "
-        "(default benchmarks/results/accuracy_vs_cost_<cpu|gpu>)",
+        "(default validation/results/accuracy_vs_cost_<cpu|gpu>)",
     )
     p.add_argument(
         "--merge",

@@ -41,9 +41,9 @@ excluded), per simulated second.
 
 Run (~60-70 min on 2 CPU cores for both precisions):
 
-    python benchmarks/stability_map.py                  # both precisions, all axes
-    python benchmarks/stability_map.py --precisions float64 --axes dt viscosity
-    python benchmarks/stability_map.py --replot         # redraw MD/PNG from JSON
+    python validation/stability_map.py                  # both precisions, all axes
+    python validation/stability_map.py --precisions float64 --axes dt viscosity
+    python validation/stability_map.py --replot         # redraw MD/PNG from JSON
 
 Writes results/stability_map_<cpu|gpu>.{json,md,png}.
 """

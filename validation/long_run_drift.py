@@ -14,8 +14,8 @@ excursion; the run ends early (and says so) if a result code fires.
 
 Run (~15 min on 2 CPU cores for the three methods, float64):
 
-    python benchmarks/long_run_drift.py
-    python benchmarks/long_run_drift.py --steps 20000 --methods explicit
+    python validation/long_run_drift.py
+    python validation/long_run_drift.py --steps 20000 --methods explicit
 
 Writes results/long_run_drift_<cpu|gpu>.{json,md}.
 """

@@ -7,9 +7,9 @@ s; the response is the largest |mode amplitude| / A of the excited surface mode
 frequency of the largest response, refined by a parabola through it and its two
 neighbours.
 
-    python benchmarks/resonance_sweep.py --spacing 0.025 \
+    python validation/resonance_sweep.py --spacing 0.025 \
         --freqs 1.10 1.16 1.22 1.28 1.34 2.04 2.10 2.16 2.22 2.28
-    python benchmarks/resonance_sweep.py --spacing 0.0125 \
+    python validation/resonance_sweep.py --spacing 0.0125 \
         --freqs 1.16 1.20 1.24 1.28 1.32
 
 Prints the responses and the peaks; `--out FILE.json` saves them.
