@@ -46,7 +46,7 @@ def _setup():
     return scene, params, state
 
 
-def _loss(value, field, scene, params, state, checkpoint=True):
+def _field_loss(value, field, scene, params, state, checkpoint=True):
     p = eqx.tree_at(lambda p: getattr(p, field), params, value)
     final = jaxmps.simulate(
         scene, p, state, 6, 3, throw=False, checkpoint=checkpoint
@@ -61,11 +61,11 @@ def _loss(value, field, scene, params, state, checkpoint=True):
 def test_rollout_gradient_matches_central_differences(field):
     scene, params, state = _setup()
     x0 = getattr(params, field)
-    g = jax.grad(_loss)(x0, field, scene, params, state)
+    g = jax.grad(_field_loss)(x0, field, scene, params, state)
     h = 1e-4 * x0
     fd = (
-        _loss(x0 + h, field, scene, params, state)
-        - _loss(x0 - h, field, scene, params, state)
+        _field_loss(x0 + h, field, scene, params, state)
+        - _field_loss(x0 - h, field, scene, params, state)
     ) / (2 * h)
     assert np.isfinite(g) and abs(float(fd)) > 0
     assert float(g) == pytest.approx(float(fd), rel=1e-4)
@@ -77,7 +77,7 @@ def test_checkpoint_settings_give_the_same_gradient():
     scene, params, state = _setup()
     x0 = params.viscosity
     out = {
-        c: jax.value_and_grad(_loss)(x0, "viscosity", scene, params, state, c)
+        c: jax.value_and_grad(_field_loss)(x0, "viscosity", scene, params, state, c)
         for c in (True, "steps", False)
     }
     for c in ("steps", False):
