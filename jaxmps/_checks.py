@@ -31,30 +31,26 @@ def check_compatible(scene: Scene, params: Params, state: State) -> None:
         raise ValueError(
             "Scene.motion and Params.motion must both be set or both be None."
         )
-    if (scene.rigid is None) != (params.rigid is None) or (scene.rigid is None) != (
-        state.rigid is None
-    ):
-        raise ValueError(
-            "Scene.rigid, Params.rigid and State.rigid must all be set or all be None; "
-            "build them together with `jaxmps.add_rigid_bodies`."
-        )
-    if scene.rigid is not None:
-        b = scene.rigid.count
-        shapes = {
-            "Params.rigid.density": params.rigid.density.shape,
-            "Params.rigid.mu_static": params.rigid.mu_static.shape,
-            "Params.rigid.mu_kinetic": params.rigid.mu_kinetic.shape,
-            "State.rigid.centre": state.rigid.centre.shape[-2:-1],
-        }
-        for name, shape in shapes.items():
-            if shape != (b,):
-                raise ValueError(
-                    f"{name} has shape {shape} but the Scene has {b} rigid bodies "
-                    f"(expected ({b},)). For a batch of values use `jaxmps.sweep` "
-                    "or `jax.vmap` over Params."
-                )
+    _check_body_models(scene, params, state)
     _check_viscous_limit(scene, params)
     _check_finite(state)
+
+
+def _check_body_models(scene: Scene, params: Params, state: State) -> None:
+    """Each body model is present in Scene, Params and State or in none of them, and
+    passes its own checks."""
+    for name in scene.body_fields:
+        present = {
+            getattr(record, name) is not None for record in (scene, params, state)
+        }
+        if len(present) > 1:
+            raise ValueError(
+                f"Scene.{name}, Params.{name} and State.{name} must all be set or all "
+                "be None; build them together (for rigid bodies with "
+                "`jaxmps.add_rigid_bodies`)."
+            )
+    for model in scene.body_models:
+        model.check(params, state)
 
 
 def _check_params_shapes(scene: Scene, params: Params) -> None:

@@ -1,8 +1,10 @@
 """Scene: the static description of a simulation (shapes, discretisation, models)."""
 
+from typing import ClassVar
+
 import equinox as eqx
 
-from .bodies import RigidBodies
+from .bodies import AbstractBodyModel, RigidBodies
 from .fluid import (
     AbstractPressureSolver,
     CollisionGuard,
@@ -55,7 +57,17 @@ class Scene(eqx.Module):
         outflow: optional outflow plane returning fluid to the pool.
         motion: optional prescribed motion of wall particles (piston, shaken tank).
         rigid: optional rigid bodies (with contact and friction).
+        body_fields: the fields that hold body models (`AbstractBodyModel`), in the
+            order they advance.
     """
+
+    # Choice: the registry of body models. Each model keeps a named, typed field in
+    # Scene, Params and State (rather than one tuple of models) so that the records
+    # stay typed pytrees the runtime type checks read, and users keep stable paths
+    # (`params.rigid.mu_kinetic`, `calibrate(..., "rigid.mu_kinetic")`). Every place
+    # that goes over the models (step, checks, frames, run files) reads this tuple:
+    # a new model is its module under `bodies/`, its three fields and one entry here.
+    body_fields: ClassVar[tuple[str, ...]] = ("rigid",)
 
     discretisation: Discretisation
     capacity: int
@@ -74,6 +86,12 @@ class Scene(eqx.Module):
     outflow: Outflow | None = None
     motion: PrescribedMotion | None = None
     rigid: RigidBodies | None = None
+
+    @property
+    def body_models(self) -> tuple[AbstractBodyModel, ...]:
+        """The body models this Scene has, in the order they advance."""
+        models = (getattr(self, name) for name in self.body_fields)
+        return tuple(model for model in models if model is not None)
 
     @property
     def dim(self) -> int:

@@ -15,23 +15,11 @@ from ._scene import Scene
 from ._state import State
 from ._step import _step, with_neighbour_lists, without_neighbour_lists
 
-# Rigid-body fields saved with each frame (the run file's /bodies group).
-BODY_FIELDS = (
-    "centre",
-    "orientation",
-    "velocity",
-    "angular_velocity",
-    "force",
-    "torque",
-    "contact_force",
-    "friction",
-    "impulse",
-)
-
 
 class Frame(eqx.Module):
     """The default observation: one full particle snapshot (and, in scenes with
-    rigid bodies, each body's `BODY_FIELDS` in `bodies`)."""
+    body models, what each model observes of its bodies in `bodies`: for rigid
+    bodies the `RigidBodies.frame_fields`)."""
 
     time: Float[Array, ""]
     position: Float[Array, "n d"]
@@ -43,10 +31,11 @@ class Frame(eqx.Module):
 
 def frame(scene: Scene, state: State) -> Frame:
     """Observe a full snapshot (time, position, velocity, pressure, active, bodies)."""
-    del scene
     bodies = None
-    if state.rigid is not None:
-        bodies = {name: getattr(state.rigid, name) for name in BODY_FIELDS}
+    if scene.body_models:
+        bodies = {}
+        for model in scene.body_models:
+            bodies.update(model.observe(state))
     return Frame(
         time=state.time,
         position=state.position,

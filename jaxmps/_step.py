@@ -20,8 +20,8 @@
 
 A stage whose component the Scene does not have (no motion, no bodies, ...) is
 skipped in Python at trace time, so a scene compiles only the physics it contains.
-A new body model is one more field of Scene/Params/State, an `AbstractBodyModel`
-under `bodies/`, and one entry in `_body_models`.
+A new body model is an `AbstractBodyModel` under `bodies/`, one more field of
+Scene/Params/State, and one entry in `Scene.body_fields`.
 """
 
 import dataclasses
@@ -38,12 +38,6 @@ from ._result import Result, StepInfo, update_result
 from ._scene import Scene
 from ._state import State
 from ._types import MOBILE_KINDS, is_kind
-from .bodies import AbstractBodyModel
-
-
-def _body_models(scene: Scene) -> tuple[AbstractBodyModel, ...]:
-    """The body models the Scene has, in the order they advance."""
-    return tuple(model for model in (scene.rigid,) if model is not None)
 
 
 def _step(
@@ -138,7 +132,7 @@ def _step(
     if scene.outflow is not None:
         with jax.named_scope("outflow"):
             new = fluid.apply_outflow(scene.outflow, scene.grid, new)
-    for model in _body_models(scene):
+    for model in scene.body_models:
         with jax.named_scope(model.name):
             new = model.advance(disc, params, new, load)
 
@@ -164,7 +158,7 @@ def _boundaries(scene: Scene, params: Params, state: State):
 def _coupling(scene: Scene, params: Params, state: State) -> Coupling | None:
     """What the body models impose on the fluid (None in a scene without bodies).
     Each model owns its particles; their records are merged slot by slot."""
-    parts = [model.coupling(params, state) for model in _body_models(scene)]
+    parts = [model.coupling(params, state) for model in scene.body_models]
     if not parts:
         return None
     merged = parts[0]

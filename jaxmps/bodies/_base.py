@@ -1,8 +1,10 @@
 """The interface of a body model: how bodies plug into the step."""
 
 import abc
+from typing import ClassVar
 
 import equinox as eqx
+from jaxtyping import Array, Int, Shaped
 
 from .._coupling import Coupling, FluidLoad
 from .._params import Params
@@ -20,12 +22,24 @@ class AbstractBodyModel(eqx.Module):
     A step asks every model present for its `coupling` before the fluid stages, and
     calls its `advance` after them with what the fluid exerted (`FluidLoad`). A model
     never reads or writes the fluid's internals, nor the fluid a model's state.
+    Everything else that is particular to a model is asked of it too: its checks
+    before a run (`check`), what a saved frame holds of it (`observe`), and which
+    particles it owns in a run file (`owner`).
 
     Attributes:
-        name: the model's field in Scene, Params and State (e.g. "rigid").
+        name: the model's field in Scene, Params and State (e.g. "rigid"), and its
+            sub-state's group in a run file's /state.
+        frame_fields: the fields of its sub-state that each saved frame holds (a run
+            file's /bodies/<field>); unique across the models of a Scene.
     """
 
     name: eqx.AbstractClassVar[str]
+    frame_fields: ClassVar[tuple[str, ...]] = ()
+
+    @abc.abstractmethod
+    def owner(self, state: State) -> Int[Array, " n"]:
+        """The body each particle belongs to, -1 for none (numbered after the other
+        models' bodies)."""
 
     @abc.abstractmethod
     def coupling(self, params: Params, state: State) -> Coupling:
@@ -39,3 +53,13 @@ class AbstractBodyModel(eqx.Module):
         """Advance the model's bodies by one step from the state the fluid stages
         left (body particles moved as fluid of their own density) and the
         `FluidLoad` of the step."""
+
+    def check(self, params: Params, state: State) -> None:
+        """Trace-time check that the model's parameters and sub-state fit it
+        (ValueError naming the setting to change); none by default."""
+        del params, state
+
+    def observe(self, state: State) -> dict[str, Shaped[Array, "..."]]:
+        """What a saved frame holds of the model: its sub-state's `frame_fields`."""
+        sub = getattr(state, self.name)
+        return {field: getattr(sub, field) for field in self.frame_fields}

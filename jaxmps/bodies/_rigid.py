@@ -6,7 +6,7 @@ from typing import ClassVar
 
 import jax
 import jax.numpy as jnp
-from jaxtyping import Array, Bool, Float
+from jaxtyping import Array, Bool, Float, Int
 
 from .._coupling import Coupling, FluidLoad
 from .._numerics import pair_sum, safe_norm, take_rows
@@ -39,6 +39,17 @@ class RigidBodies(AbstractBodyModel):
     """
 
     name: ClassVar[str] = "rigid"
+    frame_fields: ClassVar[tuple[str, ...]] = (
+        "centre",
+        "orientation",
+        "velocity",
+        "angular_velocity",
+        "force",
+        "torque",
+        "contact_force",
+        "friction",
+        "impulse",
+    )
     count: int
     friction: Coulomb | None = Coulomb()
     # Choice: seed 000's contact indicator is r < l0, but a body resting on a wall sits
@@ -52,11 +63,32 @@ class RigidBodies(AbstractBodyModel):
         if not self.contact_distance > 0:
             raise ValueError("RigidBodies.contact_distance must be positive.")
 
+    def check(self, params: Params, state: State) -> None:
+        """One value per body in the parameters and the sub-state (ValueError)."""
+        b = self.count
+        shapes = {
+            "Params.rigid.density": params.rigid.density.shape,
+            "Params.rigid.mu_static": params.rigid.mu_static.shape,
+            "Params.rigid.mu_kinetic": params.rigid.mu_kinetic.shape,
+            "State.rigid.centre": state.rigid.centre.shape[-2:-1],
+        }
+        for name, shape in shapes.items():
+            if shape != (b,):
+                raise ValueError(
+                    f"{name} has shape {shape} but the Scene has {b} rigid bodies "
+                    f"(expected ({b},)). For a batch of values use `jaxmps.sweep` "
+                    "or `jax.vmap` over Params."
+                )
+
+    def owner(self, state: State) -> Int[Array, " n"]:
+        """Each particle's body, -1 for none (rigid bodies are numbered first)."""
+        return state.rigid.body
+
     def coupling(self, params: Params, state: State) -> Coupling:
         """Body particles are advanced with their body's density (seed 000 §4.3: the
         pressure acceleration of a body particle is -grad P / rho_body), and the
         particles of one body exert no fluid force on each other."""
-        body = state.rigid.body
+        body = self.owner(state)
         rho = take_rows(params.rigid.density, jnp.where(body >= 0, body, body.shape[0]))
         return Coupling(density=jnp.where(body >= 0, rho, params.density), owner=body)
 

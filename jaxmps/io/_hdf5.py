@@ -159,6 +159,7 @@ class RunWriter:
         self.path = Path(path)
         self.xdmf_path = self.path.with_suffix(".xdmf")
         self.dt = float(np.asarray(case.params.dt))
+        self.body_fields = tuple(model.name for model in case.scene.body_models)
         if append:
             self.file = _open_checked(self.path, "r+")
             n = self.file["particles/kind"].shape[0]
@@ -191,9 +192,7 @@ class RunWriter:
         particles.create_dataset(
             "kind", data=np.asarray(case.state.kind).astype(np.int8)
         )
-        rigid = getattr(case.state, "rigid", None)
-        body = np.full(n, -1, np.int32) if rigid is None else np.asarray(rigid.body)
-        particles.create_dataset("body", data=body.astype(np.int32))
+        particles.create_dataset("body", data=_owner(case.scene, case.state, n))
         f.create_group("frames")
         f.create_group("probes")
         f.flush()
@@ -272,10 +271,9 @@ class RunWriter:
             if name == "result":
                 value = int(np.asarray(result_code(value)))
             group.create_dataset(name, data=np.asarray(value))
-        rigid = getattr(state, "rigid", None)
-        if rigid is not None:
-            sub = group.create_group("rigid")
-            for name, value in _module_fields(rigid).items():
+        for model in self.body_fields:
+            sub = group.create_group(model)
+            for name, value in _module_fields(getattr(state, model)).items():
                 sub.create_dataset(name, data=np.asarray(value))
         self.file.flush()
 
@@ -299,6 +297,16 @@ class RunWriter:
         """Flush and close the file (idempotent)."""
         if self.file.id.valid:
             self.file.close()
+
+
+def _owner(scene: Any, state: State, n: int) -> np.ndarray:
+    """/particles/body: the body each particle belongs to over all the Scene's body
+    models, -1 for none."""
+    body = np.full(n, -1, np.int32)
+    for model in scene.body_models:
+        owner = np.asarray(model.owner(state))
+        body = np.where(owner >= 0, owner, body).astype(np.int32)
+    return body
 
 
 def _data_item(h5name: str, dataset: str, shape: tuple, dtype: np.dtype) -> str:
@@ -467,9 +475,11 @@ def load_state(path: str | os.PathLike, case: Any):
         if missing:
             raise ValueError(f"'{path}': /state lacks {missing}.")
         values = {k: group[k][()] for k in STATE_FIELDS}
-        rigid_values = (
-            {k: v[()] for k, v in group["rigid"].items()} if "rigid" in group else None
-        )
+        sub_values = {
+            model: {k: v[()] for k, v in group[model].items()}
+            for model in case.scene.body_fields
+            if model in group
+        }
 
     def cast(where: str, value, like):
         value = np.asarray(value)
@@ -484,22 +494,24 @@ def load_state(path: str | os.PathLike, case: Any):
         name: cast(f"/state/{name}", values[name], getattr(case.state, name))
         for name in STATE_FIELDS[:-1]
     }
-    rigid = None
-    like_rigid = getattr(case.state, "rigid", None)
-    if (like_rigid is None) != (rigid_values is None):
-        raise ValueError(
-            f"'{path}': the run {'has' if rigid_values else 'has no'} rigid bodies but "
-            f"the case {'has' if like_rigid is not None else 'has none'}: it is not a "
-            "run of this case."
-        )
-    if like_rigid is not None:
+    for model in case.scene.body_fields:
+        like = getattr(case.state, model)
+        stored = sub_values.get(model)
+        if (like is None) != (stored is None):
+            raise ValueError(
+                f"'{path}': the run {'has' if stored else 'has no'} {model} bodies "
+                f"but the case {'has' if like is not None else 'has none'}: it is "
+                "not a run of this case."
+            )
+        if like is None:
+            continue
         parts = {}
-        for name, like in _module_fields(like_rigid).items():
-            if name not in rigid_values:
-                raise ValueError(f"'{path}': /state/rigid lacks '{name}'.")
-            parts[name] = cast(f"/state/rigid/{name}", rigid_values[name], like)
-        rigid = type(like_rigid)(**parts)
-    return State(**fields, result=result_from_code(int(values["result"])), rigid=rigid)
+        for name, part in _module_fields(like).items():
+            if name not in stored:
+                raise ValueError(f"'{path}': /state/{model} lacks '{name}'.")
+            parts[name] = cast(f"/state/{model}/{name}", stored[name], part)
+        fields[model] = type(like)(**parts)
+    return State(**fields, result=result_from_code(int(values["result"])))
 
 
 def write_run(
