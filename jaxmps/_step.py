@@ -29,6 +29,7 @@ import dataclasses
 import equinox as eqx
 import jax
 import jax.numpy as jnp
+from jaxtyping import Array, Bool
 
 from . import fluid, neighbours, operators
 from ._checks import check_compatible
@@ -37,98 +38,60 @@ from ._params import Params
 from ._result import Result, StepInfo, update_result
 from ._scene import Scene
 from ._state import State
-from ._types import MOBILE_KINDS, is_kind
+from ._types import Field, Mask, Positions, Scalar, Velocities
 
 
 def _step(
     scene: Scene, params: Params, state: State, batch_axis: str | None = None
 ) -> tuple[State, StepInfo]:
-    disc = scene.discretisation
-    dt = params.dt
+    disc, dt = scene.discretisation, params.dt
     with jax.named_scope("boundaries"):
         state, pool_short = _boundaries(scene, params, state)
     with jax.named_scope("coupling"):
         coupling = _coupling(scene, params, state)
-    mobile = fluid.is_mobile(state.kind, state.active)
+    kind, active = state.kind, state.active
+    mobile = fluid.is_mobile(kind, active)
 
     with jax.named_scope("neighbours"):
         nbrs_k, pairs_k = _neighbours(
-            scene, state.position, state.active, state.neighbours, batch_axis
+            scene, state.position, active, state.neighbours, batch_axis
         )
     with jax.named_scope("predict"):
         u_star = fluid.predict(disc, scene.laplacian, params, state, pairs_k, coupling)
     if scene.collision is not None:
         with jax.named_scope("collide"):
-            u_star = scene.collision(disc, u_star, state.kind, state.active, pairs_k)
-    x_star = fluid.advect(dt, state.position, u_star, mobile)
+            u_star = scene.collision(disc, u_star, kind, active, pairs_k)
+    with jax.named_scope("advect"):
+        x_star = fluid.advect(dt, state.position, u_star, mobile)
 
     with jax.named_scope("neighbours"):
-        nbrs, pairs = _neighbours(scene, x_star, state.active)
+        nbrs, pairs = _neighbours(scene, x_star, active)
     n_star = operators.number_density(pairs)
-    surface = jnp.zeros_like(state.active)
+    surface = jnp.zeros_like(active)
     if scene.surface is not None:
         with jax.named_scope("surface"):
             surface = fluid.detect_surface(
-                scene.surface,
-                params.beta,
-                disc.n0,
-                n_star,
-                state.kind,
-                state.active,
-                pairs,
+                scene.surface, params.beta, disc.n0, n_star, kind, active, pairs
             )
     with jax.named_scope("pressure"):
-        solution = scene.solver(
-            disc,
-            scene.laplacian,
-            scene.grid,
-            params,
-            fluid.PressureInputs(
-                pairs=pairs,
-                n_star=n_star,
-                position=x_star,
-                velocity=u_star,
-                surface=surface,
-                pairs_k=pairs_k,
-                velocity_k=state.velocity,
-                pressure_k=state.pressure,
-                kind=state.kind,
-                active=state.active,
-            ),
+        inputs = _pressure_inputs(
+            state, pairs_k, pairs, n_star, surface, x_star, u_star
         )
+        solution = scene.solver(disc, scene.laplacian, scene.grid, params, inputs)
     with jax.named_scope("correct"):
         load = fluid.pressure_force(
-            scene.gradient,
-            disc,
-            pairs,
-            solution.pressure,
-            state.kind,
-            state.active,
-            coupling,
+            scene.gradient, disc, pairs, solution.pressure, kind, active, coupling
         )
         density = params.density if coupling is None else coupling.density
         u_prime = fluid.accelerate(dt, load.gradient, density, mobile)
     if scene.stabiliser is not None:
         with jax.named_scope("stabilise"):
+            x_new = x_star + dt * u_prime
             push = scene.stabiliser(
-                disc,
-                pairs,
-                state.position,
-                x_star + dt * u_prime,
-                state.kind,
-                state.active,
-                dt,
+                disc, pairs, state.position, x_new, kind, active, dt
             )
             u_prime = u_prime + dt * push
-    new = dataclasses.replace(
-        state,
-        time=state.time + dt,
-        step=state.step + 1,
-        position=x_star + dt * u_prime,
-        velocity=u_star + u_prime,
-        pressure=solution.pressure,
-        neighbours=_carried(state, nbrs, x_star),
-    )
+    new = _advanced(state, dt, x_star, u_star, u_prime, solution.pressure, nbrs)
     if scene.outflow is not None:
         with jax.named_scope("outflow"):
             new = fluid.apply_outflow(scene.outflow, scene.grid, new)
@@ -138,11 +101,13 @@ def _step(
 
     with jax.named_scope("result"):
         info = _info(solution, nbrs_k, nbrs)
-        new = _record(scene, params, new, info, pool_short)
+        new = _record(scene, params, new, info, pool_short, mobile & new.active)
     return new, info
 
 
-def _boundaries(scene: Scene, params: Params, state: State):
+def _boundaries(
+    scene: Scene, params: Params, state: State
+) -> tuple[State, Bool[Array, ""]]:
     """Moving walls and the inflow: the state and whether the inflow's pool ran
     short."""
     pool_short = jnp.asarray(False)
@@ -170,7 +135,13 @@ def _coupling(scene: Scene, params: Params, state: State) -> Coupling | None:
     return merged
 
 
-def _neighbours(scene: Scene, position, active, cache=None, batch_axis=None):
+def _neighbours(
+    scene: Scene,
+    position: Positions,
+    active: Mask,
+    cache: neighbours.NeighbourCache | None = None,
+    batch_axis: str | None = None,
+) -> tuple[neighbours.Neighbours, operators.Pairs]:
     """Neighbour lists at `position` (the carried ones while valid) and their pair
     geometry."""
     disc = scene.discretisation
@@ -187,7 +158,56 @@ def _neighbours(scene: Scene, position, active, cache=None, batch_axis=None):
     return nbrs, operators.make_pairs(nbrs.index, position, disc.weight, disc.r_e)
 
 
-def _carried(state: State, nbrs: neighbours.Neighbours, position):
+def _pressure_inputs(
+    state: State,
+    pairs_k: operators.Pairs,
+    pairs: operators.Pairs,
+    n_star: Field,
+    surface: Mask,
+    position: Positions,
+    velocity: Velocities,
+) -> fluid.PressureInputs:
+    """What the pressure stage may use: the tentative positions and velocities
+    (r*, u*) with their pairs, number density and surface, and the step's start."""
+    return fluid.PressureInputs(
+        pairs=pairs,
+        n_star=n_star,
+        position=position,
+        velocity=velocity,
+        surface=surface,
+        pairs_k=pairs_k,
+        velocity_k=state.velocity,
+        pressure_k=state.pressure,
+        kind=state.kind,
+        active=state.active,
+    )
+
+
+def _advanced(
+    state: State,
+    dt: Scalar,
+    x_star: Positions,
+    u_star: Velocities,
+    u_prime: Velocities,
+    pressure: Field,
+    nbrs: neighbours.Neighbours,
+) -> State:
+    """The state after the fluid stages: r = r* + dt u', u = u* + u', the new
+    pressure, and the lists of r* for the next step."""
+    return dataclasses.replace(
+        state,
+        time=state.time + dt,
+        step=state.step + 1,
+        position=x_star + dt * u_prime,
+        velocity=u_star + u_prime,
+        pressure=pressure,
+        neighbours=_carried(state, nbrs, x_star),
+    )
+
+
+def _carried(
+    state: State, nbrs: neighbours.Neighbours, position: Positions
+) -> neighbours.NeighbourCache | None:
     """The lists the next step receives: those of the predicted positions, when the
     state carries lists at all."""
     if state.neighbours is None:
@@ -214,12 +234,16 @@ def _info(
 
 
 def _record(
-    scene: Scene, params: Params, new: State, info: StepInfo, pool_short
+    scene: Scene,
+    params: Params,
+    new: State,
+    info: StepInfo,
+    pool_short: Bool[Array, ""],
+    mobile: Mask,
 ) -> State:
     """Record the step's first failure in the state's result: overflows, an empty
-    pool, a particle out of the domain, a step beyond a stability limit, an
-    unconverged pressure solve, a non-finite state."""
-    mobile = jnp.logical_and(new.active, is_kind(new.kind, MOBILE_KINDS))
+    pool, a particle out of the domain, a step beyond a stability limit (over the
+    `mobile` particles), an unconverged pressure solve, a non-finite state."""
     speed = jnp.sqrt(jnp.sum(new.velocity**2, axis=-1))
     courant = jnp.max(jnp.where(mobile, speed, 0.0)) * params.dt / scene.spacing
     viscous = 2 * scene.dim * params.viscosity * params.dt / scene.lam

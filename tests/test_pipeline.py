@@ -116,6 +116,7 @@ def test_scene_without_bodies_compiles_no_body_code():
     def scopes(case):
         return _scopes(case.scene, case.params, case.state)
 
+    assert "advect" in scopes(fluid)
     assert "held" not in scopes(fluid)
     assert "held" in _scopes(*_hold(fluid, [0, 1]))
     assert "pressure" in scopes(fluid) and "pressure" in scopes(body)

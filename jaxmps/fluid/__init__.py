@@ -12,6 +12,7 @@ from .._params import InflowParams as InflowParams
 from .._params import StrokeParams as StrokeParams
 from ._cg import SolveInfo as SolveInfo
 from ._cg import solve_spd as solve_spd
+from ._correct import accelerate as accelerate
 from ._correct import pressure_force as pressure_force
 from ._correct import pressure_gradient as pressure_gradient
 from ._explicit import Explicit as Explicit
@@ -29,7 +30,6 @@ from ._precondition import Jacobi as Jacobi
 from ._precondition import Multigrid as Multigrid
 from ._precondition import PressureSystem as PressureSystem
 from ._predict import CollisionGuard as CollisionGuard
-from ._predict import accelerate as accelerate
 from ._predict import advect as advect
 from ._predict import is_mobile as is_mobile
 from ._predict import predict as predict

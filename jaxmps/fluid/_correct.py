@@ -1,12 +1,22 @@
 """The pressure force: the gradient each particle is corrected with (seed 000 eq.
-2.2-8), and for body particles its momentum-conserving form and contact part."""
+2.2-8), and for body particles its momentum-conserving form and contact part; the
+velocity correction it makes."""
 
 import jax.numpy as jnp
 from jaxtyping import Array, Bool, Float
 
 from .._coupling import Coupling, FluidLoad
 from .._numerics import take_rows
-from .._types import PRESSURE_KINDS, Field, Kind, Kinds, Mask, is_kind
+from .._types import (
+    PRESSURE_KINDS,
+    Field,
+    Kind,
+    Kinds,
+    Mask,
+    Scalar,
+    Velocities,
+    is_kind,
+)
 from ..operators import AbstractGradient, Discretisation, Pairs
 
 
@@ -69,4 +79,17 @@ def pressure_force(
         pairs=pairs,
         gradient=jnp.where(owned[:, None], on_body, applied),
         wall_gradient=jnp.where(owned[:, None], from_walls, 0.0),
+    )
+
+
+def accelerate(
+    dt: Scalar,
+    gradient: Float[Array, "n d"],
+    density: Float[Array, " n"] | Float[Array, ""],
+    mobile: Bool[Array, " n"],
+) -> Velocities:
+    """The pressure correction u' = -dt / rho <grad P> of mobile particles (eq.
+    2.2-8), with each particle's own mass density (a body's, or the fluid's)."""
+    return jnp.where(
+        mobile[:, None], -(dt / jnp.reshape(density, (-1, 1))) * gradient, 0.0
     )

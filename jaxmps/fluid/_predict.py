@@ -3,7 +3,6 @@ the tentative positions (seed 000 eq. 2.2-3/4)."""
 
 import equinox as eqx
 import jax.numpy as jnp
-from jaxtyping import Array, Bool, Float
 
 from .._coupling import Coupling
 from .._numerics import component_dot, pair_differences, pair_sum, take_rows
@@ -106,16 +105,3 @@ def advect(
 ) -> Positions:
     """r* = r^k + dt u* for mobile particles (eq. 2.2-4); others stay."""
     return jnp.where(mobile[:, None], position + dt * velocity, position)
-
-
-def accelerate(
-    dt: Scalar,
-    gradient: Float[Array, "n d"],
-    density: Float[Array, " n"] | Float[Array, ""],
-    mobile: Bool[Array, " n"],
-) -> Velocities:
-    """The pressure correction u' = -dt / rho <grad P> of mobile particles (eq.
-    2.2-8), with each particle's own mass density (a body's, or the fluid's)."""
-    return jnp.where(
-        mobile[:, None], -(dt / jnp.reshape(density, (-1, 1))) * gradient, 0.0
-    )
