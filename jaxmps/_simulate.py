@@ -163,17 +163,17 @@ def lower_simulate(*args, **kwargs) -> jax.stages.Lowered:
 
 @eqx.filter_jit
 def _simulate(
-    scene,
-    params,
-    state,
-    n_steps,
-    save_every,
-    observe,
+    scene: Scene,
+    params: Params,
+    state: State,
+    n_steps: int,
+    save_every: int | None,
+    observe: Callable[[Scene, State], PyTree],
     *,
-    throw=True,
-    checkpoint=True,
-    batch_axis=None,
-):
+    throw: bool = True,
+    checkpoint: bool | Literal["steps"] = True,
+    batch_axis: str | None = None,
+) -> Trajectory:
     save_every = n_steps if save_every is None else save_every
 
     def one_step(carry: State, _):

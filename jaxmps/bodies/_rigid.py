@@ -2,11 +2,12 @@
 seed 002 §4): the passively moving solid of Koshizuka et al."""
 
 import dataclasses
+from collections.abc import Callable
 from typing import ClassVar
 
 import jax
 import jax.numpy as jnp
-from jaxtyping import Array, Bool, Float, Int
+from jaxtyping import Array, Bool, Float, Int, Shaped
 
 from .._coupling import Coupling, FluidLoad
 from .._numerics import pair_sum, safe_norm, take_rows
@@ -171,7 +172,18 @@ class RigidBodies(AbstractBodyModel):
             rigid=rigid,
         )
 
-    def _rub(self, disc, params, contact, velocity, momentum_l, mass, number):
+    def _rub(
+        self,
+        disc: Discretisation,
+        params: Params,
+        contact: Contact,
+        velocity: Float[Array, "b d"],
+        momentum_l: Float[Array, "b a"],
+        mass: Float[Array, " b"],
+        number: Float[Array, " b"],
+    ) -> tuple[
+        Float[Array, "b d"], Float[Array, "b a"], Float[Array, "b d"], Bool[Array, " b"]
+    ]:
         """Friction against walls: (velocity, angular momentum) after the friction
         impulse, the friction force, and whether each body slides."""
         count = self.count
@@ -202,7 +214,14 @@ class RigidBodies(AbstractBodyModel):
             sliding,
         )
 
-    def _contact(self, disc, state, load, body_sum, arm_k) -> Contact:
+    def _contact(
+        self,
+        disc: Discretisation,
+        state: State,
+        load: FluidLoad,
+        body_sum: Callable[[Shaped[Array, "n ..."]], Shaped[Array, "b ..."]],
+        arm_k: Float[Array, "n d"],
+    ) -> Contact:
         """Each body's contact with walls from the pairs of the step: the pressure
         force the walls exerted, the contact normal, the touching particles' pressure
         and the mean lever arm of the touching particles."""

@@ -1,15 +1,20 @@
 """`jaxmps.sweep`: one scene, a batch of Params values, one vmapped computation."""
 
 import time
+from collections.abc import Callable
 from typing import Any
 
 import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
+from jaxtyping import Array, Int, PyTree
 
+from .._params import Params
 from .._result import result_code
+from .._scene import Scene
 from .._simulate import simulate
+from .._state import State
 from ..scenes import observe_probes
 from ._fields import get_field, set_field
 
@@ -56,7 +61,15 @@ def batch_params(params, values: dict[str, Any]):
 
 
 @eqx.filter_jit
-def _batched(scene, params, state, n_steps, save_every, observe, axes):
+def _batched(
+    scene: Scene,
+    params: Params,
+    state: State,
+    n_steps: int,
+    save_every: int | None,
+    observe: Callable[[Scene, State], PyTree],
+    axes: Params,
+) -> tuple[PyTree, Int[Array, " b"]]:
     """One compiled program per (scene, shapes, n_steps, save_every, observe, axes):
     repeated sweeps reuse it."""
 

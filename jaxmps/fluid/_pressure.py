@@ -7,7 +7,7 @@ import jax.numpy as jnp
 from jaxtyping import Array, Bool, Float
 
 from .._numerics import take_rows
-from .._types import PRESSURE_KINDS, is_kind
+from .._types import PRESSURE_KINDS, Kinds, is_kind
 from ..operators import Pairs
 from ._cg import SolveInfo, solve_spd
 from ._precondition import Apply, PressureSystem
@@ -15,7 +15,7 @@ from ._precondition import Apply, PressureSystem
 
 def assemble_pressure_system(
     pairs: Pairs,
-    kind,
+    kind: Kinds,
     active: Bool[Array, " n"],
     surface: Bool[Array, " n"],
     coefficient: Float[Array, "n k"] | None = None,
@@ -41,7 +41,7 @@ def assemble_pressure_system(
 
 def pressure_system(
     pairs: Pairs,
-    kind,
+    kind: Kinds,
     active: Bool[Array, " n"],
     surface: Bool[Array, " n"],
     coefficient: Float[Array, "n k"] | None = None,
@@ -54,7 +54,7 @@ def pressure_system(
 
 def solve_pressure(
     pairs: Pairs,
-    kind,
+    kind: Kinds,
     active: Bool[Array, " n"],
     surface: Bool[Array, " n"],
     source: Float[Array, " n"],

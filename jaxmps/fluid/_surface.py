@@ -5,7 +5,7 @@ import jax.numpy as jnp
 from jaxtyping import Array, Bool, Float
 
 from .._numerics import take_rows
-from .._types import PRESSURE_KINDS, is_kind
+from .._types import PRESSURE_KINDS, Kinds, is_kind
 from ..operators import Pairs
 
 
@@ -26,7 +26,7 @@ def detect_surface(
     beta: Float[Array, ""],
     n0: float,
     number_density: Float[Array, " n"],
-    kind,
+    kind: Kinds,
     active: Bool[Array, " n"],
     pairs: Pairs,
 ) -> Bool[Array, " n"]:

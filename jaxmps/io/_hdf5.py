@@ -13,6 +13,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._result import result_code, result_from_code
+from .._scene import Scene
 from .._state import State
 
 FORMAT = "jaxmps-run"
@@ -299,7 +300,7 @@ class RunWriter:
             self.file.close()
 
 
-def _owner(scene: Any, state: State, n: int) -> np.ndarray:
+def _owner(scene: Scene, state: State, n: int) -> np.ndarray:
     """/particles/body: the body each particle belongs to over all the Scene's body
     models, -1 for none."""
     body = np.full(n, -1, np.int32)

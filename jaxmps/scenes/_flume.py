@@ -2,10 +2,16 @@
 
 import math
 
+import equinox as eqx
+import jax.numpy as jnp
 import numpy as np
+from jaxtyping import Array, Float
 
 from .. import geometry
 from .._build import make_state
+from .._params import Params
+from .._scene import Scene
+from .._state import State
 from .._types import Kind
 from ..fluid import Inflow, InflowParams, Outflow
 from ._case import Case
@@ -30,10 +36,8 @@ class FluidCount(AbstractProbe):
 
     name: str
 
-    def __call__(self, scene, state):
+    def __call__(self, scene: Scene, state: State) -> Float[Array, ""]:
         del scene
-        import jax.numpy as jnp
-
         fluid = state.active & (state.kind == int(Kind.FLUID))
         return jnp.sum(fluid).astype(state.position.dtype)
 
@@ -175,9 +179,7 @@ def flume(**overrides) -> Case:
     )
 
 
-def _with_boundaries(scene, inflow, outflow):
-    import equinox as eqx
-
+def _with_boundaries(scene: Scene, inflow: Inflow, outflow: Outflow) -> Scene:
     return eqx.tree_at(
         lambda s: (s.inflow, s.outflow),
         scene,
@@ -186,7 +188,5 @@ def _with_boundaries(scene, inflow, outflow):
     )
 
 
-def _with_inflow(params, inflow):
-    import equinox as eqx
-
+def _with_inflow(params: Params, inflow: InflowParams) -> Params:
     return eqx.tree_at(lambda p: p.inflow, params, inflow, is_leaf=lambda x: x is None)

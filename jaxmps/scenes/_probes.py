@@ -7,6 +7,8 @@ import jax
 import jax.numpy as jnp
 from jaxtyping import Array, Float
 
+from .._scene import Scene
+from .._state import State
 from .._types import Kind
 
 
@@ -16,7 +18,7 @@ class AbstractProbe(eqx.Module):
     name: eqx.AbstractVar[str]
 
     @abc.abstractmethod
-    def __call__(self, scene, state) -> Float[Array, ""]:
+    def __call__(self, scene: Scene, state: State) -> Float[Array, ""]:
         """The probe's value for this state."""
 
 
@@ -35,7 +37,7 @@ class FrontPosition(AbstractProbe):
     spacing: float
     n_bins: int
 
-    def __call__(self, scene, state):
+    def __call__(self, scene: Scene, state: State):
         del scene
         fluid = jnp.logical_and(state.active, state.kind == int(Kind.FLUID))
         x = state.position[:, 0] - self.x_start
@@ -58,7 +60,7 @@ class WaterLevel(AbstractProbe):
     floor: float
     spacing: float
 
-    def __call__(self, scene, state):
+    def __call__(self, scene: Scene, state: State):
         del scene
         fluid = jnp.logical_and(state.active, state.kind == int(Kind.FLUID))
         near = jnp.abs(state.position[:, 0] - self.x) < 0.5 * self.spacing
@@ -74,7 +76,7 @@ class PressureAt(AbstractProbe):
     name: str
     indices: tuple[int, ...]
 
-    def __call__(self, scene, state):
+    def __call__(self, scene: Scene, state: State):
         del scene
         return jnp.mean(state.pressure[jnp.asarray(self.indices)])
 
@@ -86,7 +88,7 @@ class FluidPressureNear(AbstractProbe):
     point: tuple[float, ...]
     radius: float
 
-    def __call__(self, scene, state):
+    def __call__(self, scene: Scene, state: State):
         del scene
         fluid = jnp.logical_and(state.active, state.kind == int(Kind.FLUID))
         d = (
@@ -107,7 +109,7 @@ def observe_probes(probes: tuple[AbstractProbe, ...]):
 class _ProbeObserver(eqx.Module):
     probes: tuple[AbstractProbe, ...]
 
-    def __call__(self, scene, state):
+    def __call__(self, scene: Scene, state: State):
         out = {"time": state.time}
         for probe in self.probes:
             out[probe.name] = probe(scene, state)
@@ -135,7 +137,7 @@ class StripLevel(AbstractProbe):
     anchor: int | None = None
     anchor_x: float = 0.0
 
-    def __call__(self, scene, state):
+    def __call__(self, scene: Scene, state: State):
         del scene
         fluid = jnp.logical_and(state.active, state.kind == int(Kind.FLUID))
         x = _tank_frame(state, self.anchor, self.anchor_x)
@@ -148,7 +150,9 @@ class StripLevel(AbstractProbe):
         return area / self.width - self.still_depth
 
 
-def _tank_frame(state, anchor: int | None, anchor_x: float):
+def _tank_frame(
+    state: State, anchor: int | None, anchor_x: float
+) -> Float[Array, " n"]:
     """Particle x in the frame that moves with particle `anchor` (initially at
     `anchor_x`); the lab frame when `anchor` is None."""
     x = state.position[:, 0]
@@ -186,7 +190,7 @@ class BodyValue(AbstractProbe):
         if self.field not in fields:
             raise ValueError(f"BodyValue.field must be one of {fields}.")
 
-    def __call__(self, scene, state):
+    def __call__(self, scene: Scene, state: State):
         rigid = state.rigid
         if self.field == "angle":
             q = rigid.orientation[self.body]
@@ -212,7 +216,7 @@ class WallForce(AbstractProbe):
     upper: tuple[float, ...]
     spacing: float
 
-    def __call__(self, scene, state):
+    def __call__(self, scene: Scene, state: State):
         del scene
         x = state.position
         lower = jnp.asarray(self.lower, x.dtype)[None, :]
@@ -236,7 +240,7 @@ class RunUp(AbstractProbe):
     band: float
     still_depth: float
 
-    def __call__(self, scene, state):
+    def __call__(self, scene: Scene, state: State):
         x = _tank_frame(state, self.anchor, self.anchor_x) - self.toe
         y = state.position[:, 1]
         gap = (y * self.slope - x) / jnp.sqrt(1.0 + self.slope**2)
@@ -261,7 +265,7 @@ class ModeAmplitude(AbstractProbe):
     anchor: int | None = None
     anchor_x: float = 0.0
 
-    def __call__(self, scene, state):
+    def __call__(self, scene: Scene, state: State):
         fluid = jnp.logical_and(state.active, state.kind == int(Kind.FLUID))
         c = jnp.cos(self.wave_number * _tank_frame(state, self.anchor, self.anchor_x))
         return 2.0 / self.length * jnp.sum(jnp.where(fluid, c, 0.0)) * self.spacing**2
