@@ -11,10 +11,14 @@ from typing import Any
 import equinox as eqx
 import jax
 import numpy as np
+from jaxtyping import Array, ArrayLike, Int
 
 from ._result import Result, result_code
-from ._simulate import frame, simulate
+from ._scene import Scene
+from ._simulate import Frame, frame, simulate
+from ._state import State
 from .io import RunWriter, load_state
+from .scenes import Case
 
 
 class _Observer(eqx.Module):
@@ -22,7 +26,9 @@ class _Observer(eqx.Module):
 
     probes: tuple
 
-    def __call__(self, scene, state):
+    def __call__(
+        self, scene: Scene, state: State
+    ) -> tuple[Frame, Int[Array, ""], Int[ArrayLike, ""], dict[str, Array]]:
         values = {"time": state.time}
         for probe in self.probes:
             values[probe.name] = probe(scene, state)
@@ -93,7 +99,9 @@ def _plan(
     return _Plan(steps_per_save=steps_per_save, n_saves=n_saves, chunk=chunk)
 
 
-def _open_writer(out: Path | None, case, append: bool, done: int) -> RunWriter | None:
+def _open_writer(
+    out: Path | None, case: Case, append: bool, done: int
+) -> RunWriter | None:
     """The run file's writer (None without `out`); when appending, the frames
     computed after the state a restart continues from are dropped first."""
     if out is None:
@@ -106,7 +114,13 @@ def _open_writer(out: Path | None, case, append: bool, done: int) -> RunWriter |
     return writer
 
 
-def _write(writer: RunWriter | None, fr, steps, values, state=None) -> None:
+def _write(
+    writer: RunWriter | None,
+    fr: Frame,
+    steps: np.ndarray,
+    values: dict[str, np.ndarray],
+    state: State | None = None,
+) -> None:
     if writer is None:
         return
     writer.append_frames(fr, step=steps)
@@ -115,7 +129,9 @@ def _write(writer: RunWriter | None, fr, steps, values, state=None) -> None:
         writer.write_state(state)
 
 
-def _first_frame(observer: _Observer, case, state, writer) -> dict:
+def _first_frame(
+    observer: _Observer, case: Case, state: State, writer: RunWriter | None
+) -> dict[str, np.ndarray]:
     """Observe and write the initial state; its probe row."""
     fr, step, _, values = _host(observer(case.scene, state))
     fr = jax.tree_util.tree_map(lambda x: x[None], fr)
@@ -124,7 +140,14 @@ def _first_frame(observer: _Observer, case, state, writer) -> dict:
     return values
 
 
-def _chunk(case, observer, state, plan: _Plan, writer, out) -> tuple[Any, dict]:
+def _chunk(
+    case: Case,
+    observer: _Observer,
+    state: State,
+    plan: _Plan,
+    writer: RunWriter | None,
+    out: Path | None,
+) -> tuple[State, dict[str, np.ndarray]]:
     """Run one chunk of saves and write it; the new state and its probe rows.
 
     Raises:
@@ -158,7 +181,14 @@ def _chunk(case, observer, state, plan: _Plan, writer, out) -> tuple[Any, dict]:
     )
 
 
-def _last_good(case, observer, state, saves: int, plan: _Plan, writer):
+def _last_good(
+    case: Case,
+    observer: _Observer,
+    state: State,
+    saves: int,
+    plan: _Plan,
+    writer: RunWriter | None,
+) -> State:
     """The state of the last successful save of a failed chunk (`saves` saves after
     `state`), replayed (the rollout is deterministic) and written as `/state`, so
     that a restart continues from there."""
@@ -203,7 +233,7 @@ def _gather(rows: list[dict]) -> dict:
 
 
 def run(
-    case: Any,
+    case: Case,
     t_end: float | None = None,
     out: str | os.PathLike | None = None,
     save_every: float | None = None,
@@ -247,35 +277,18 @@ def run(
     t_end = float(case.t_end if t_end is None else t_end)
     save_every = t_end / 100 if save_every is None else float(save_every)
     out = None if out is None else Path(out)
-    if restart and restart_from is None:
-        if out is None:
-            raise ValueError("restart=True needs `out` (the run file to continue).")
-        restart_from = out
-    restart_from = None if restart_from is None else Path(restart_from)
+    restart_from, append = _restart_source(out, restart, restart_from)
     state = case.state if restart_from is None else load_state(restart_from, case)
-    append = (
-        restart_from is not None
-        and out is not None
-        and out.resolve() == restart_from.resolve()
-    )
     t_now = None if restart_from is None else float(np.asarray(state.time))
     dt = float(np.asarray(case.params.dt))
     plan = _plan(dt, t_end, save_every, t_now, chunk_saves)
     done = int(np.asarray(state.step))
 
-    observer = _Observer(probes=tuple(case.probes))
-    rows: list[dict] = []
     writer = _open_writer(out, case, append, done)
     try:
-        if not append:
-            rows.append(_first_frame(observer, case, state, writer))
         label = f"{case.name} (t_end={t_end:g} s)"
         with _progress(progress, plan, label) as bar:
-            for _ in range(plan.n_saves // plan.chunk if plan.chunk else 0):
-                state, values = _chunk(case, observer, state, plan, writer, out)
-                rows.append(values)
-                if bar is not None:
-                    bar.update(plan.chunk * plan.steps_per_save)
+            state, rows = _saves(case, state, plan, writer, out, append, bar)
     finally:
         if writer is not None:
             writer.close()
@@ -286,3 +299,42 @@ def run(
         n_steps=int(np.asarray(state.step)) - done,
         wall_time=_time.perf_counter() - started,
     )
+
+
+def _restart_source(
+    out: Path | None, restart: bool, restart_from: str | os.PathLike | None
+) -> tuple[Path | None, bool]:
+    """The run file a run continues from (None: the case's state), and whether the
+    run appends to it (it is `out`)."""
+    if restart and restart_from is None:
+        if out is None:
+            raise ValueError("restart=True needs `out` (the run file to continue).")
+        restart_from = out
+    restart_from = None if restart_from is None else Path(restart_from)
+    append = (
+        restart_from is not None
+        and out is not None
+        and out.resolve() == restart_from.resolve()
+    )
+    return restart_from, append
+
+
+def _saves(
+    case: Case,
+    state: State,
+    plan: _Plan,
+    writer: RunWriter | None,
+    out: Path | None,
+    append: bool,
+    bar: Any,
+) -> tuple[State, list[dict]]:
+    """Make the plan's saves chunk by chunk (and the first frame, unless appending):
+    the final state and the probe rows of every save."""
+    observer = _Observer(probes=tuple(case.probes))
+    rows = [] if append else [_first_frame(observer, case, state, writer)]
+    for _ in range(plan.n_saves // plan.chunk if plan.chunk else 0):
+        state, values = _chunk(case, observer, state, plan, writer, out)
+        rows.append(values)
+        if bar is not None:
+            bar.update(plan.chunk * plan.steps_per_save)
+    return state, rows
