@@ -16,6 +16,7 @@ import jax.numpy as jnp
 import jaxlib
 
 import jaxmps
+from jaxmps import _result
 
 HERE = Path(__file__).resolve().parent
 
@@ -98,10 +99,7 @@ def machine_info() -> dict:
 
 def result_name(result) -> str:
     """Name of a `jaxmps.Result` value ("successful", "nonfinite_state", ...)."""
-    for name in jaxmps.Result._name_to_item:
-        if bool(result == getattr(jaxmps.Result, name)):
-            return name
-    return str(result)
+    return _result.result_name(result)
 
 
 @dataclasses.dataclass
@@ -130,11 +128,43 @@ class Timed:
         }
 
 
+def compile_timed(lower, *args, **kwargs) -> tuple[Any, float, float]:
+    """Lower and compile a program: (compiled, trace_lower_s, compile_s).
+
+    Args:
+        lower: returns the lowered program for `(*args, **kwargs)`, e.g.
+            `jaxmps.lower_simulate` or `eqx.filter_jit(fn).lower`.
+    """
+    t0 = time.perf_counter()
+    lowered = lower(*args, **kwargs)
+    t1 = time.perf_counter()
+    compiled = lowered.compile()
+    return compiled, t1 - t0, time.perf_counter() - t1
+
+
+def time_calls(
+    call, repeats: int = 3, max_timed_s=math.inf
+) -> tuple[Any, float, list[float]]:
+    """Time a compiled call: one untimed warm-up call, then `repeats` timed calls,
+    each ended by `jax.block_until_ready`; only one timed call when the warm-up
+    took longer than `max_timed_s`. Returns (warm-up output, warmup_s, times).
+    With `repeats=0` it makes the first call only, timed as `warmup_s` (for runs
+    too long to repeat)."""
+    t0 = time.perf_counter()
+    out = jax.block_until_ready(call())
+    warmup_s = time.perf_counter() - t0
+    times = []
+    for _ in range(min(1, repeats) if warmup_s > max_timed_s else repeats):
+        start = time.perf_counter()
+        jax.block_until_ready(call())
+        times.append(time.perf_counter() - start)
+    return out, warmup_s, times
+
+
 def time_compiled(lower, *args, repeats: int = 3, max_timed_s=math.inf, **kwargs):
     """Compile a program and time it the way every script here does: lower it and
-    compile it (both timed, apart from running), one untimed warm-up call, then the
-    best of `repeats` timed calls, each ended by `jax.block_until_ready`; only one
-    timed call when the warm-up took longer than `max_timed_s`.
+    compile it (both timed, apart from running, `compile_timed`), one untimed
+    warm-up call, then the best of `repeats` timed calls (`time_calls`).
 
     Args:
         lower: returns the lowered program for `(*args, **kwargs)`, e.g.
@@ -144,23 +174,15 @@ def time_compiled(lower, *args, repeats: int = 3, max_timed_s=math.inf, **kwargs
     Returns:
         A `Timed`: the warm-up call's output, the compiled program, the timings.
     """
-    t0 = time.perf_counter()
-    lowered = lower(*args, **kwargs)
-    t1 = time.perf_counter()
-    compiled = lowered.compile()
-    t2 = time.perf_counter()
-    out = jax.block_until_ready(compiled(*args, **kwargs))
-    t3 = time.perf_counter()
-    times = []
-    for _ in range(1 if t3 - t2 > max_timed_s else repeats):
-        start = time.perf_counter()
-        jax.block_until_ready(compiled(*args, **kwargs))
-        times.append(time.perf_counter() - start)
+    compiled, trace_lower_s, compile_s = compile_timed(lower, *args, **kwargs)
+    out, warmup_s, times = time_calls(
+        lambda: compiled(*args, **kwargs), repeats, max_timed_s
+    )
     return Timed(
         output=out,
         compiled=compiled,
-        trace_lower_s=t1 - t0,
-        compile_s=t2 - t1,
-        warmup_s=t3 - t2,
+        trace_lower_s=trace_lower_s,
+        compile_s=compile_s,
+        warmup_s=warmup_s,
         run_s_all=times,
     )

@@ -21,8 +21,9 @@ For each T in `--steps` and checkpoint in (True, "steps", False), this script me
    the process peak RSS of running the gradient in a fresh subprocess (minus the
    baseline after building the case, and minus the resident size just before the
    first gradient call), and the forward and gradient run times (compile excluded,
-   best of `--repeats` calls of the compiled program, each ended by
-   `jax.block_until_ready`), giving the gradient / forward run-time ratio;
+   best of `--repeats` calls of the compiled program after an untimed one, each
+   ended by `jax.block_until_ready`: `_common.time_calls`), giving the gradient /
+   forward run-time ratio;
 3. the log-log slope of memory vs T for each checkpoint setting.
 
 Scene: `jaxmps.scenes.hydrostatic` (still water; stays calm for long rollouts), by
@@ -57,7 +58,7 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
-from _common import loadavg, machine_info
+from _common import compile_timed, loadavg, machine_info, time_calls
 
 import jaxmps
 
@@ -152,18 +153,9 @@ def memory_analysis(compiled) -> dict | None:
 
 
 def lower_compile(fn, *args):
-    t0 = time.perf_counter()
-    compiled = fn.lower(*args).compile()
-    return compiled, time.perf_counter() - t0
-
-
-def timed(call, repeats: int):
-    times, out = [], None
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        out = jax.block_until_ready(call())
-        times.append(time.perf_counter() - t0)
-    return times, out
+    """The compiled program and its trace, lower and compile time [s]."""
+    compiled, trace_lower_s, compile_s = compile_timed(fn.lower, *args)
+    return compiled, trace_lower_s + compile_s
 
 
 def worker(cfg: dict) -> dict:
@@ -203,9 +195,9 @@ def worker(cfg: dict) -> dict:
 
     before_run_rss = current_rss_bytes()
     before_run_peak = peak_rss_bytes()
-    g_times, (grads, g_result) = timed(lambda: grd(*args), cfg["repeats"])
+    (grads, g_result), _, g_times = time_calls(lambda: grd(*args), cfg["repeats"])
     grad_peak = peak_rss_bytes()
-    f_times, (loss, f_result) = timed(lambda: fwd(*args), cfg["repeats"])
+    (loss, f_result), _, f_times = time_calls(lambda: fwd(*args), cfg["repeats"])
     leaves = [x for x in jax.tree_util.tree_leaves(grads) if eqx.is_array(x)]
     rec.update(
         ran=True,
@@ -310,8 +302,8 @@ def markdown(info: dict, rows: list[dict], summary: dict, args) -> str:
         "- save_every: divisor of T minimising T/save_every + save_every (~sqrt(T)); "
         "the same save_every is used without checkpointing",
         f"- runs: each (T, checkpoint) in a fresh subprocess; run time = best of "
-        f"{args.repeats} calls of the compiled program (compile excluded, "
-        "`block_until_ready`); runs skipped where T > "
+        f"{args.repeats} calls of the compiled program after an untimed one "
+        "(compile excluded, `block_until_ready`); runs skipped where T > "
         f"{args.run_max_steps} or the static estimate > {args.max_run_gib} GiB",
         "",
         "XLA static = `Compiled.memory_analysis()` (temp + argument + output - alias). "

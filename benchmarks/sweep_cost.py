@@ -2,7 +2,8 @@
 
 The 2-D dam break (spacing 0.0146 m, 518 particles, 160 steps) is run once alone
 and as vmapped batches of 4, 8 and 16 viscosities (one chunk each). Run times exclude
-compilation (each program is called twice; the second call is timed).
+compilation (each program is called twice; the second call is timed: for the single
+run `_common.time_compiled`, for a sweep its second call).
 
 Run: python benchmarks/sweep_cost.py  (writes results/sweep_cost_cpu.{json,md})
 """
@@ -10,35 +11,24 @@ Run: python benchmarks/sweep_cost.py  (writes results/sweep_cost_cpu.{json,md})
 import json
 import os
 import pathlib
-import time
 
-import jax
 import jax.numpy as jnp
 import numpy as np
+from _common import time_compiled
 
 import jaxmps
 
 HERE = pathlib.Path(__file__).parent
 
 
-def timed(fn):
-    jax.block_until_ready(fn())
-    t0 = time.perf_counter()
-    jax.block_until_ready(fn())
-    return time.perf_counter() - t0
-
-
 def main():
     case = jaxmps.scenes.dam_break(spacing=0.0146)
     obs = jaxmps.scenes.observe_probes(case.probes)
     n_steps = 160
-    single = timed(
-        lambda: (
-            jaxmps.simulate(
-                case.scene, case.params, case.state, n_steps, 20, obs, throw=False
-            ).saved
-        )
-    )
+    args = (case.scene, case.params, case.state, n_steps, 20, obs)
+    single = time_compiled(
+        jaxmps.lower_simulate, *args, repeats=1, throw=False
+    ).run_s_best
     rows = [dict(batch=1, run_s=single, per_member_s=single, ratio_to_single=1.0)]
     for b in (4, 8, 16):
         nus = jnp.asarray(np.geomspace(1e-6, 1e-2, b), case.params.dt.dtype)

@@ -49,8 +49,9 @@ class Result(eqx.Enumeration):
 
 
 # Equinox's `Enumeration` has no public accessor for an item's integer code, which
-# run files store and batched results are compared by; these two functions are the
-# only places that read its private fields.
+# run files store and batched results are compared by, nor for its name, which
+# reports print; these three functions are the only places that read its private
+# fields.
 
 
 def result_code(result: Result) -> Int[ArrayLike, ""]:
@@ -66,6 +67,14 @@ def result_from_code(code: int) -> Result:
         if int(np.asarray(item._value)) == int(code):
             return item
     raise ValueError(f"No jaxmps.Result has the integer code {code}.")
+
+
+def result_name(result: Result) -> str:
+    """The name of a (concrete, unbatched) `Result` item: "successful",
+    "nonfinite_state", ..."""
+    return next(
+        name for name in Result._name_to_item if bool(result == getattr(Result, name))
+    )
 
 
 def update_result(old: Result, pred: Bool[ArrayLike, ""], item: Result) -> Result:

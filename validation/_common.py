@@ -14,4 +14,6 @@ HERE = Path(__file__).resolve().parent
 loadavg = _module.loadavg
 machine_info = _module.machine_info
 result_name = _module.result_name
+compile_timed = _module.compile_timed
+time_calls = _module.time_calls
 time_compiled = _module.time_compiled

@@ -25,11 +25,12 @@ For each solver ("semi_implicit", "explicit") and three resolutions of two test 
   - "probe y(t)" (JSON only): y_p = the time-averaged mean height of the probed set
     over the same saves (an extra observation of this script).
 
-Cost: the rollout (`jaxmps.simulate` core, `throw=False`, probes saved every few
-steps) is compiled with `.lower(...).compile()` (compile time reported separately),
-then called once untimed (warm-up; its output gives the errors) and timed over the
-best of `--repeats` calls (fewer when a call is slower than `--max-timed-s`), each
-ended by `jax.block_until_ready`. Reported: wall time per simulated second
+Cost: the rollout (`jaxmps.simulate`, `throw=False`, probes saved every few steps)
+is timed by `_common.time_compiled`: compiled with `jaxmps.lower_simulate(...)
+.compile()` (compile time reported separately), then called once untimed (warm-up;
+its output gives the errors) and timed over the best of `--repeats` calls (one only
+when the warm-up took longer than `--max-timed-s`), each ended by
+`jax.block_until_ready`. Reported: wall time per simulated second
 (run / simulated time), ms/step, particle-steps/s (capacity incl. walls/dummies x steps
 / run), and the default time step `case.params.dt` of each solver.
 
@@ -45,7 +46,6 @@ Writes `validation/results/accuracy_vs_cost_<cpu|gpu>.{json,md,png}` (override w
 import argparse
 import json
 import math
-import sys
 import time
 from pathlib import Path
 
@@ -54,7 +54,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 from _common import loadavg as _loadavg
-from _common import machine_info, result_name
+from _common import machine_info, result_name, time_compiled
 
 import jaxmps
 
@@ -123,66 +123,22 @@ class _Observer(eqx.Module):
         return out
 
 
-def _core_simulate():
-    """The jitted core behind `jaxmps.simulate` (supports `.lower`), or None."""
-    fn = getattr(jaxmps.simulate, "lower", None)
-    if fn is not None:
-        return jaxmps.simulate
-    mod = sys.modules.get("jaxmps._simulate")
-    core = getattr(mod, "_simulate", None) if mod is not None else None
-    return core if hasattr(core, "lower") else None
-
-
 def _timed_rollout(scene, params, state, n_steps, save_every, observe, args):
-    """Compile, warm up, time. Returns (trajectory, timing dict)."""
-    core = _core_simulate()
-    timing = {}
-    if core is not None and core is not jaxmps.simulate:
-        # Run the public wrapper's input checks without running anything (they are
-        # Python-side), then compile the core exactly as `jaxmps.simulate` calls it.
-        mod = sys.modules["jaxmps._simulate"]
-        mod.check_compatible(scene, params, state)
-        call_args = (scene, params, state, n_steps, save_every, observe)
-        call_kwargs = dict(throw=False, checkpoint=True)
-    else:
-        call_args = (scene, params, state, n_steps, save_every, observe)
-        call_kwargs = dict(throw=False)
-    if core is not None:
-        t0 = time.perf_counter()
-        lowered = core.lower(*call_args, **call_kwargs)
-        t1 = time.perf_counter()
-        compiled = lowered.compile()
-        t2 = time.perf_counter()
-        timing.update(trace_lower_s=t1 - t0, compile_s=t2 - t1, compile_method="lower")
-
-        def call():
-            return compiled(*call_args, **call_kwargs)
-
-        t0 = time.perf_counter()
-        traj = jax.block_until_ready(call())
-        timing["warmup_s"] = time.perf_counter() - t0
-    else:  # fallback: compile = first call - best run
-
-        def call():
-            return jaxmps.simulate(*call_args, **call_kwargs)
-
-        t0 = time.perf_counter()
-        traj = jax.block_until_ready(call())
-        timing["warmup_s"] = time.perf_counter() - t0
-        timing["compile_method"] = "first call - best run"
-    times = []
-    for _ in range(args.repeats):
-        t0 = time.perf_counter()
-        jax.block_until_ready(call())
-        times.append(time.perf_counter() - t0)
-        if times[-1] > args.max_timed_s:
-            break
-    timing["run_s_all"] = times
-    timing["run_s_best"] = min(times)
-    if core is None:
-        timing["trace_lower_s"] = 0.0
-        timing["compile_s"] = timing["warmup_s"] - timing["run_s_best"]
-    return traj, timing
+    """Compile, warm up, time (`_common.time_compiled`). Returns (trajectory, timing
+    dict)."""
+    timed = time_compiled(
+        jaxmps.lower_simulate,
+        scene,
+        params,
+        state,
+        n_steps,
+        save_every,
+        observe,
+        throw=False,
+        repeats=args.repeats,
+        max_timed_s=args.max_timed_s,
+    )
+    return timed.output, {**timed.timing(), "compile_method": "lower"}
 
 
 def _dam_break_errors(saved, a):
@@ -339,7 +295,7 @@ def markdown(data: dict) -> str:
     lines += [
         "- run = best of up to "
         f"{data['settings']['repeats']} calls of the compiled rollout after one "
-        "untimed warm-up call (one timed call only when a call takes longer than "
+        "untimed warm-up call (one timed call only when the warm-up took longer than "
         f"{data['settings']['max_timed_s']:g} s); compile time (trace+lower / XLA) is "
         "separate and not in any other column. Default `case.params.dt` of each "
         "solver.",
