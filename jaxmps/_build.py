@@ -251,8 +251,8 @@ def add_rigid_bodies(
     mu_static=0.5,
     mu_kinetic=None,
     orientation=None,
-    friction: bodies.Coulomb | None = bodies.Coulomb(),
-    contact_distance: float = 1.5,
+    friction: bodies.Coulomb | None = bodies.RigidBodies.friction,
+    contact_distance: float = bodies.RigidBodies.contact_distance,
 ) -> tuple[Scene, Params, State]:
     """Turn particles of a built case into rigid bodies.
 
@@ -267,8 +267,9 @@ def add_rigid_bodies(
         orientation: the orientation the particles are given in (angle in degrees
             per body in 2-D, rotation vector in degrees per body in 3-D); the body
             frame is the unrotated one, so reported orientations are absolute.
-        friction: a `jaxmps.bodies.Coulomb` law, or None for frictionless contact.
-        contact_distance: see `jaxmps.bodies.RigidBodies`.
+        friction: a `jaxmps.bodies.Coulomb` law, or None for frictionless contact
+            (default: that of `jaxmps.bodies.RigidBodies`).
+        contact_distance: see `jaxmps.bodies.RigidBodies` (and its default).
 
     Returns:
         The new (scene, params, state).
@@ -282,13 +283,7 @@ def add_rigid_bodies(
         raise ValueError("This scene already has rigid bodies; add all in one call.")
     active = np.asarray(state.active)
     ids, count = bodies.body_indices(body, scene.capacity, active)
-    density = bodies.per_body(density, "density", count)
-    mu_static = bodies.per_body(mu_static, "mu_static", count)
-    mu_kinetic = (
-        mu_static
-        if mu_kinetic is None
-        else bodies.per_body(mu_kinetic, "mu_kinetic", count)
-    )
+    rigid_params = _rigid_params(params, count, density, mu_static, mu_kinetic)
     rigid, kind, velocity = bodies.rigid_state(
         np.array(state.position, np.float64),
         np.array(state.velocity, np.float64),
@@ -303,12 +298,6 @@ def add_rigid_bodies(
     model = bodies.RigidBodies(
         count=count, friction=friction, contact_distance=contact_distance
     )
-    dtype = params.density.dtype
-    rigid_params = RigidParams(
-        density=jnp.asarray(density, dtype),
-        mu_static=jnp.asarray(mu_static, dtype),
-        mu_kinetic=jnp.asarray(mu_kinetic, dtype),
-    )
     new_state = dataclasses.replace(
         state,
         kind=jnp.asarray(kind, state.kind.dtype),
@@ -319,4 +308,22 @@ def add_rigid_bodies(
         dataclasses.replace(scene, rigid=model),
         dataclasses.replace(params, rigid=rigid_params),
         new_state,
+    )
+
+
+def _rigid_params(params: Params, count: int, density, mu_static, mu_kinetic):
+    """Each body's density and friction coefficients, in the dtype of `params`
+    (`mu_kinetic` defaults to `mu_static`)."""
+    density = bodies.per_body(density, "density", count)
+    mu_static = bodies.per_body(mu_static, "mu_static", count)
+    mu_kinetic = (
+        mu_static
+        if mu_kinetic is None
+        else bodies.per_body(mu_kinetic, "mu_kinetic", count)
+    )
+    dtype = params.density.dtype
+    return RigidParams(
+        density=jnp.asarray(density, dtype),
+        mu_static=jnp.asarray(mu_static, dtype),
+        mu_kinetic=jnp.asarray(mu_kinetic, dtype),
     )

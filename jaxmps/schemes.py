@@ -3,7 +3,8 @@
 A scheme is the set of models a Scene is discretised with (influence radius,
 weight, Laplacian, gradient, pressure stage, free surface, collision guard,
 stabiliser). `make_scene` takes one (`scheme=`, default `standard()`); this module
-is the only place where the defaults are written. Each correction of the
+is the one place where a scheme's choice of models is written (each model's own
+settings, a tolerance or a guard distance, default in its class). Each correction of the
 high-accuracy scheme is a strategy object in its own slot, so a preset is only a
 choice of objects, and the ablation ladder of seed 001 is a set of toggles:
 

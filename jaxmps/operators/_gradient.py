@@ -123,9 +123,10 @@ class CorrectedGradient(AbstractGradient):
     # surface meeting a wall): spurious speeds grow from the top corners and the run
     # explodes within 0.3-0.5 s for every source term, tolerance and precision we
     # tried. With the shift, max spurious speed stays below ~0.1 m/s (0.2 m tank,
-    # l0 = 0.01 m). `Scene` therefore defaults to `CorrectedGradient(minimum_shift=
-    # True)`; `CorrectedGradient()` reproduces the seed (and is exact on linear
-    # fields, which the shifted form is not).
+    # l0 = 0.01 m). The default scheme (`schemes.standard`) therefore uses
+    # `CorrectedGradient(minimum_shift=True)`; this class's default,
+    # `CorrectedGradient()`, is the operator as the seed defines it (exact on linear
+    # fields, which the shifted form is not), which `schemes.high_accuracy` uses.
     minimum_shift: bool = False
 
     def __call__(

@@ -1,5 +1,6 @@
 """Shared construction of the built-in scenes: overrides, tanks, Scene/State."""
 
+import inspect
 import math
 from typing import Any
 
@@ -10,28 +11,44 @@ from .._build import make_params, make_scene, make_state
 from .._types import Kind
 from ..fluid import Jacobi, Multigrid, SemiImplicit
 
-# Overrides every scene accepts, with their defaults (None: scene-specific).
+SOLVERS = ("semi_implicit", "explicit")
+SCHEMES = ("standard", "high_accuracy", "standard_mps")
+PRECONDITIONERS = {"multigrid": Multigrid, "jacobi": Jacobi}
+
+
+def _default(function, name: str) -> Any:
+    """The default of `function`'s argument `name`."""
+    return inspect.signature(function).parameters[name].default
+
+
+def _preconditioner_name(preconditioner) -> str:
+    return next(
+        name
+        for name, kind in PRECONDITIONERS.items()
+        if isinstance(preconditioner, kind)
+    )
+
+
+# Overrides every scene accepts, with their defaults (None: scene-specific). The
+# physical and solver defaults are read from where they are written: `make_params`
+# and `SemiImplicit`.
 COMMON = {
     "solver": "semi_implicit",
     "scheme": "standard",
     "dt": None,
-    "viscosity": 1.0e-6,
-    "density": 1000.0,
-    "gravity": 9.81,
-    "beta": 0.97,
-    "sound_speed": 10.0,
-    "rtol": None,
-    "max_iterations": 2000,
-    "preconditioner": "multigrid",
+    "viscosity": _default(make_params, "viscosity"),
+    "density": _default(make_params, "density"),
+    "gravity": _default(make_params, "gravity"),
+    "beta": _default(make_params, "beta"),
+    "sound_speed": _default(make_params, "sound_speed"),
+    "rtol": SemiImplicit.rtol,
+    "max_iterations": SemiImplicit.max_iterations,
+    "preconditioner": _preconditioner_name(SemiImplicit.preconditioner),
     "max_neighbours": None,
     "candidate_capacity": None,
     "courant": 0.2,
     "domain_margin": None,
 }
-
-SOLVERS = ("semi_implicit", "explicit")
-SCHEMES = ("standard", "high_accuracy", "standard_mps")
-PRECONDITIONERS = {"multigrid": Multigrid, "jacobi": Jacobi}
 
 
 def _renamed(overrides: dict[str, Any]) -> dict[str, Any]:
