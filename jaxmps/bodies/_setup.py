@@ -151,17 +151,33 @@ def rigid_state(
                 f"Body {b} overlaps other particles (closest at {gap:.3g} m < 0.5 "
                 "spacing): move it, or remove the wall or fluid particles it covers."
             )
+    state = _at_rest(ids, reference, centre, orientation, v_body, w_body, dtype)
+    return state, kind, velocity
+
+
+def _at_rest(
+    ids: np.ndarray,
+    reference: np.ndarray,
+    centre: np.ndarray,
+    orientation: np.ndarray,
+    velocity: np.ndarray,
+    angular_velocity: np.ndarray,
+    dtype,
+) -> RigidState:
+    """The sub-state of bodies in the given placement and motion, with no force,
+    impulse or friction yet."""
+    count, dim = centre.shape
     zeros_b = jnp.zeros((count, dim), dtype)
     zeros_a = jnp.zeros((count, rot.spin_size(dim)), dtype)
-    state = RigidState(
+    return RigidState(
         body=jnp.asarray(ids, jnp.int32),
         reference=jnp.asarray(reference, dtype),
         centre=jnp.asarray(centre, dtype),
         orientation=jnp.asarray(
             orientation.reshape(count, rot.orientation_size(dim)), dtype
         ),
-        velocity=jnp.asarray(v_body, dtype),
-        angular_velocity=jnp.asarray(w_body, dtype),
+        velocity=jnp.asarray(velocity, dtype),
+        angular_velocity=jnp.asarray(angular_velocity, dtype),
         force=zeros_b,
         torque=zeros_a,
         contact_force=zeros_b,
@@ -170,4 +186,3 @@ def rigid_state(
         friction=zeros_b,
         sliding=jnp.zeros((count,), bool),
     )
-    return state, kind, velocity

@@ -9,6 +9,7 @@ import numpy as np
 
 from .. import geometry
 from .._build import NEIGHBOUR_SKIN, add_rigid_bodies, make_state
+from .._simulate import simulate
 from .._types import Kind
 from ..bodies import Coulomb
 from ._case import Case
@@ -244,8 +245,6 @@ def friction_tilt(**overrides) -> Case:
         None,
     )
     if c["settle"] > 0:
-        from .._simulate import simulate
-
         steps = max(1, round(c["settle"] / float(params.dt)))
         state = simulate(scene, params, state, n_steps=steps, save_every=steps).state
         state = eqx.tree_at(
