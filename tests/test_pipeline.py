@@ -36,6 +36,9 @@ class Held(AbstractBodyModel):
     first: int = 0
     loads: ClassVar[list] = []  # what `advance` was handed, at trace time
 
+    def check(self, params, state):
+        pass
+
     def owner(self, state):
         n = state.position.shape[0]
         return jnp.full(n, -1, jnp.int32).at[state.held.index].set(self.first)

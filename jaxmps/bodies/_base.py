@@ -1,7 +1,6 @@
 """The interface of a body model: how bodies plug into the step."""
 
 import abc
-from typing import ClassVar
 
 import equinox as eqx
 from jaxtyping import Array, Int, Shaped
@@ -30,11 +29,12 @@ class AbstractBodyModel(eqx.Module):
         name: the model's field in Scene, Params and State (e.g. "rigid"), and its
             sub-state's group in a run file's /state.
         frame_fields: the fields of its sub-state that each saved frame holds (a run
-            file's /bodies/<field>); unique across the models of a Scene.
+            file's /bodies/<field>), read by `observe`; unique across the models of
+            a Scene.
     """
 
     name: eqx.AbstractClassVar[str]
-    frame_fields: ClassVar[tuple[str, ...]] = ()
+    frame_fields: eqx.AbstractClassVar[tuple[str, ...]]
 
     @abc.abstractmethod
     def owner(self, state: State) -> Int[Array, " n"]:
@@ -54,10 +54,10 @@ class AbstractBodyModel(eqx.Module):
         left (body particles moved as fluid of their own density) and the
         `FluidLoad` of the step."""
 
+    @abc.abstractmethod
     def check(self, params: Params, state: State) -> None:
         """Trace-time check that the model's parameters and sub-state fit it
-        (ValueError naming the setting to change); none by default."""
-        del params, state
+        (ValueError naming the setting to change)."""
 
     def observe(self, state: State) -> dict[str, Shaped[Array, "..."]]:
         """What a saved frame holds of the model: its sub-state's `frame_fields`."""
