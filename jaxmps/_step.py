@@ -15,11 +15,13 @@
                  u' = -dt/rho grad P                        fluid.accelerate
     stabilise    dynamic stabilisation of u'                Scene.stabiliser
     outflow      return outflowing fluid to the pool        fluid.apply_outflow
-    bodies       each body model advances its bodies        <model>.advance
+    <name>       each body model advances its bodies        <model>.advance
     result       stability checks, first failure wins       _record
 
-A stage whose component the Scene does not have (no motion, no bodies, ...) is
-skipped in Python at trace time, so a scene compiles only the physics it contains.
+Each stage runs in a `jax.named_scope` of its name; a body model's is its `name`
+("rigid"). A stage whose component the Scene does not have (no motion, no bodies,
+...) is skipped in Python at trace time, so a scene compiles only the physics it
+contains.
 A new body model is an `AbstractBodyModel` under `bodies/`, one more field of
 Scene/Params/State, and one entry in `Scene.body_fields`.
 """
