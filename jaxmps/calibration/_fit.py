@@ -12,7 +12,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._simulate import simulate
-from ..scenes import observe_probes
+from ..scenes import Case, observe_probes
 from ._fields import get_field, set_field
 
 
@@ -176,7 +176,7 @@ def _plain(x):
 
 
 def calibrate(
-    case,
+    case: Case,
     fields: dict[str, AbstractTransform | None],
     curve: Curve,
     probe: str,

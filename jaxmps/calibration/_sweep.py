@@ -15,7 +15,7 @@ from .._result import result_code
 from .._scene import Scene
 from .._simulate import simulate
 from .._state import State
-from ..scenes import observe_probes
+from ..scenes import Case, observe_probes
 from ._fields import get_field, set_field
 
 
@@ -39,7 +39,7 @@ class SweepResult(eqx.Module):
     first_call_time: float
 
 
-def batch_params(params, values: dict[str, Any]):
+def batch_params(params: Params, values: dict[str, Any]) -> tuple[Params, Params, int]:
     """Params whose listed fields carry a leading batch axis, and the vmap axes."""
     sizes = {len(np.atleast_1d(v)) for v in values.values()}
     if len(sizes) != 1:
@@ -95,7 +95,7 @@ _AXIS = "jaxmps_sweep"
 
 
 def sweep(
-    case,
+    case: Case,
     values: dict[str, Any],
     n_steps: int,
     save_every: int | None = None,
