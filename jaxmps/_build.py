@@ -253,6 +253,7 @@ def add_rigid_bodies(
     orientation=None,
     friction: bodies.Coulomb | None = bodies.RigidBodies.friction,
     contact_distance: float = bodies.RigidBodies.contact_distance,
+    pressure: str = bodies.RigidBodies.pressure,
 ) -> tuple[Scene, Params, State]:
     """Turn particles of a built case into rigid bodies.
 
@@ -270,6 +271,9 @@ def add_rigid_bodies(
         friction: a `jaxmps.bodies.Coulomb` law, or None for frictionless contact
             (default: that of `jaxmps.bodies.RigidBodies`).
         contact_distance: see `jaxmps.bodies.RigidBodies` (and its default).
+        pressure: how the pressure acts on the bodies, "pairs" (contact and
+            friction) or "fluid" (floating bodies at Archimedes' draft); see
+            `jaxmps.bodies.RigidBodies`.
 
     Returns:
         The new (scene, params, state).
@@ -296,7 +300,10 @@ def add_rigid_bodies(
         state.position.dtype,
     )
     model = bodies.RigidBodies(
-        count=count, friction=friction, contact_distance=contact_distance
+        count=count,
+        friction=friction,
+        contact_distance=contact_distance,
+        pressure=pressure,
     )
     new_state = dataclasses.replace(
         state,

@@ -32,10 +32,15 @@ class Coupling(eqx.Module):
         owner: the body each particle belongs to, -1 for none, shape (n,). Owners
             are unique across body models (each model numbers its bodies from its
             own offset).
+        as_fluid: body particles whose pressure force is the fluid's own gradient
+            over all their neighbours, their own body's included (the body is
+            pressed like the fluid it replaces); elsewhere on a body, the pair form
+            across its surface (see `fluid.pressure_force`), shape (n,).
     """
 
     density: Float[Array, " n"]
     owner: Int[Array, " n"]
+    as_fluid: Bool[Array, " n"]
 
     @property
     def owned(self) -> Bool[Array, " n"]:

@@ -133,6 +133,7 @@ def _coupling(scene: Scene, params: Params, state: State) -> Coupling | None:
         merged = Coupling(
             density=jnp.where(part.owned, part.density, merged.density),
             owner=jnp.where(part.owned, part.owner, merged.owner),
+            as_fluid=jnp.where(part.owned, part.as_fluid, merged.as_fluid),
         )
     return merged
 

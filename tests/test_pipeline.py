@@ -46,7 +46,7 @@ class Held(AbstractBodyModel):
     def coupling(self, params, state):
         owner = self.owner(state)
         density = jnp.where(owner >= 0, params.held.density, params.density)
-        return jaxmps.Coupling(density=density, owner=owner)
+        return jaxmps.Coupling(density=density, owner=owner, as_fluid=owner >= 0)
 
     def advance(self, disc, params, state, load):
         Held.loads.append(load)
@@ -154,8 +154,8 @@ def test_a_body_model_plugs_in_through_the_interface():
 
 
 def test_coupling_merges_the_models_slot_by_slot():
-    """With two body models each particle takes the density and owner of the model
-    that owns it, the fluid's density elsewhere."""
+    """With two body models each particle takes the density, owner and pressure form
+    of the model that owns it, the fluid's density elsewhere."""
     case = jaxmps.scenes.block_impact(spacing=0.5)
     rigid = np.asarray(case.state.rigid.body)
     free = np.flatnonzero((rigid < 0) & np.asarray(case.state.active))[:2]
@@ -171,6 +171,8 @@ def test_coupling_merges_the_models_slot_by_slot():
     density[rigid >= 0] = body_density[rigid[rigid >= 0]]
     density[free] = 3000.0
     np.testing.assert_allclose(coupling.density, density, rtol=0, atol=0)
+    # block_impact's rigid bodies take the pair form, the held body the fluid's.
+    np.testing.assert_array_equal(coupling.as_fluid, np.isin(np.arange(len(owner)), free))
     # Both models advance in one step: the held particles stay put.
     new, _ = jaxmps.step(scene, params, state)
     np.testing.assert_array_equal(new.position[free], state.position[free])

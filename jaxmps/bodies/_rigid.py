@@ -17,7 +17,7 @@ from .._types import Kind
 from ..operators import Discretisation
 from . import rotation as rot
 from ._base import AbstractBodyModel
-from ._friction import Contact, Coulomb
+from ._friction import Contact, ContactReaction, Coulomb
 
 
 class RigidBodies(AbstractBodyModel):
@@ -37,6 +37,13 @@ class RigidBodies(AbstractBodyModel):
         friction: the friction law against walls, or None for frictionless contact.
         contact_distance: a wall particle closer than this (in units of l0) to a body
             particle puts the body in contact.
+        pressure: how the pressure acts on the body particles (`fluid.pressure_force`):
+            "pairs", the momentum-conserving pair form across the body's surface
+            (forces between bodies and against walls equal and opposite pair by
+            pair; what the `ContactReaction` friction normal needs), or "fluid", the
+            fluid's own gradient, as on the fluid the body replaces (seed 000 §4:
+            buoyancy consistent to first order, floating bodies at Archimedes'
+            draft; the pair form floats them 0.3-0.8 l0 too deep).
     """
 
     name: ClassVar[str] = "rigid"
@@ -57,12 +64,32 @@ class RigidBodies(AbstractBodyModel):
     # at exactly r = l0 on the lattice, so the strict test flickers; 1.5 l0 catches
     # the first wall layer and not the second.
     contact_distance: float = 1.5
+    # Choice: "pairs" by default, so that contact and friction keep the reaction
+    # they are built on; floating scenes without friction choose "fluid".
+    pressure: str = "pairs"
 
     def __check_init__(self):
         if self.count < 1:
             raise ValueError("RigidBodies.count must be at least 1.")
         if not self.contact_distance > 0:
             raise ValueError("RigidBodies.contact_distance must be positive.")
+        if self.pressure not in ("pairs", "fluid"):
+            raise ValueError(
+                f"RigidBodies.pressure must be 'pairs' or 'fluid', got "
+                f"{self.pressure!r}."
+            )
+        if (
+            self.pressure == "fluid"
+            and self.friction is not None
+            and isinstance(self.friction.normal, ContactReaction)
+        ):
+            raise ValueError(
+                "pressure='fluid' with a friction law whose normal force is the "
+                "ContactReaction: that reaction is the pair form's, which the bodies "
+                "do not receive with pressure='fluid'. Use pressure='pairs', "
+                "friction=None, or Coulomb(normal=ContactPressure()) or "
+                "SubmergedWeight()."
+            )
 
     def check(self, params: Params, state: State) -> None:
         """One value per body in the parameters and the sub-state (ValueError)."""
@@ -91,7 +118,11 @@ class RigidBodies(AbstractBodyModel):
         particles of one body exert no fluid force on each other."""
         body = self.owner(state)
         rho = take_rows(params.rigid.density, jnp.where(body >= 0, body, body.shape[0]))
-        return Coupling(density=jnp.where(body >= 0, rho, params.density), owner=body)
+        return Coupling(
+            density=jnp.where(body >= 0, rho, params.density),
+            owner=body,
+            as_fluid=(body >= 0) & (self.pressure == "fluid"),
+        )
 
     def advance(
         self, disc: Discretisation, params: Params, state: State, load: FluidLoad

@@ -51,16 +51,28 @@ def pressure_force(
 ) -> FluidLoad:
     """The pressure gradient of every particle at r*, as a `FluidLoad`.
 
-    Fluid particles get the Scene's gradient. Body particles (with a `coupling`)
-    get its momentum-conserving form over the pressure-carrying particles outside
-    their own body, so that summed over a body the pair forces are exactly those
-    across its surface, and the part of it from wall particles (the contact
-    reaction) is split out pair by pair.
+    Fluid particles, and body particles marked `coupling.as_fluid`, get the
+    Scene's gradient over all their pressure-carrying neighbours, their own body's
+    included: the body is pressed exactly like the fluid it replaces (seed 000 §4,
+    the passively moving solid), so a body at rest in still water receives the
+    buoyancy of the fluid it displaces, whatever the arrangement of the fluid
+    particles around it. The other body particles get the momentum-conserving
+    (symmetric) pair form over the pressure-carrying particles outside their own
+    body, so that the forces between two bodies, and between a body and the walls,
+    are equal and opposite pair by pair. For every body particle the part of that
+    pair form that wall particles exert (the contact reaction, which the friction
+    laws need) is split out pair by pair.
 
-    # Choice: the corrected gradient is not antisymmetric, so summed over a body
-    # its internal pairs leave a spurious net force. Measured on a block resting on
-    # a floor: only 49 % of the support came from the pairs with the wall. The
-    # symmetric form makes action equal reaction pair by pair.
+    # Choice: two forms, chosen per body model (`RigidBodies.pressure`), because
+    # neither does both jobs. The pair form sums (P_i + P_j) over the pairs across
+    # the surface; its terms cancel for a uniform pressure only where the fluid
+    # sits on the body's own lattice, so the buoyancy depends on how the fluid
+    # particles happen to lie against the body (lifting a box by 0.1 l0 off the
+    # lattice in a hydrostatic field cut the force by 23 %), and floating boxes
+    # settled 0.3-0.8 l0 too deep (validation/floating_draft.py). The fluid's
+    # gradient is consistent, but it is not antisymmetric: between two bodies it
+    # breaks momentum conservation, and against walls its wall part is not the
+    # reaction it applies, which the friction law's normal force relies on.
     """
     carries = jnp.logical_and(active, is_kind(kind, PRESSURE_KINDS))
     include = take_rows(carries, pairs.index)
@@ -75,9 +87,10 @@ def pressure_force(
     body_form = gradient.momentum_conserving()
     on_body = body_form(pairs, pressure, disc, external)
     from_walls = body_form(pairs, pressure, disc, external, wall)
+    paired = owned & ~coupling.as_fluid
     return FluidLoad(
         pairs=pairs,
-        gradient=jnp.where(owned[:, None], on_body, applied),
+        gradient=jnp.where(paired[:, None], on_body, applied),
         wall_gradient=jnp.where(owned[:, None], from_walls, 0.0),
     )
 

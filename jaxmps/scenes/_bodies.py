@@ -22,7 +22,7 @@ from ._common import (
     velocity_scale,
     whole,
 )
-from ._probes import BodyValue, FrontPosition, WallForce, WaterLevel
+from ._probes import BodyValue, FrontPosition, PressureLevel, WallForce, WaterLevel
 
 
 def _rotate(points: np.ndarray, centre: np.ndarray, degrees: float) -> np.ndarray:
@@ -80,6 +80,7 @@ def _body_case(config, fluid, box, walls, wall_kind, domain, speed, orientation)
         mu_kinetic=config.get("mu_kinetic"),
         orientation=orientation,
         friction=friction,
+        pressure=config.get("pressure", "pairs"),
     )
 
 
@@ -97,6 +98,7 @@ FLOATING_BOX = {
     "density_ratio": 0.5,
     "heel": 0.0,
     "initial_draft": None,
+    "body_pressure": "fluid",
     "tank_length": 0.8,
     "tank_width": 0.2,  # 3-D only
     "depth": 0.2,
@@ -112,16 +114,24 @@ def floating_box(**overrides) -> Case:
     Archimedes draft `density_ratio` x `box_height`; 0 drops it from the surface),
     heeled by `heel` degrees, in the middle of a tank `tank_length` long filled to
     `depth`. Fluid particles closer than l0/2 to the box are removed.
+    `body_pressure` is how the pressure acts on the box (`RigidBodies.pressure`):
+    "fluid" (default; at Archimedes' draft) or "pairs".
 
     Probes: `box_x`, `box_y` (centre), `box_angle` [rad], `box_force_y` (fluid force,
-    gravity excluded), `level_left`, `level_right` (water level 3 l0 from each wall).
-    Archimedes: the draft (water level minus box bottom) is `density_ratio` x
-    `box_height`.
+    gravity excluded), `level_left`, `level_right` (water level 3 l0 from each wall),
+    `surface_left`, `surface_right` (the level where the hydrostatic pressure of a
+    strip 3-8 l0 from each wall extrapolates to zero, `PressureLevel`).
+    Archimedes: the draft (that surface minus the box's bottom face) is
+    `density_ratio` x `box_height`.
     """
     c = resolve("floating_box", FLOATING_BOX, overrides)
     l0, dim = c["spacing"], int(c["dim"])
     if not c["density_ratio"] > 0:
         raise ValueError("density_ratio must be positive.")
+    if c["body_pressure"] not in ("fluid", "pairs"):
+        raise ValueError(
+            f"body_pressure must be 'fluid' or 'pairs', got {c['body_pressure']!r}."
+        )
     bw, bh = whole(c["box_width"], l0), whole(c["box_height"], l0)
     length, depth = whole(c["tank_length"], l0), whole(c["depth"], l0)
     if bw >= length:
@@ -151,7 +161,7 @@ def floating_box(**overrides) -> Case:
         [0.0] * dim, [length] + across + [height], l0, layers=boundary_layers(c)
     )
     scene, params, state = _body_case(
-        {**c, "mu_static": 0.0, "friction": None},
+        {**c, "mu_static": 0.0, "friction": None, "pressure": c["body_pressure"]},
         fluid,
         box,
         walls,
@@ -160,6 +170,7 @@ def floating_box(**overrides) -> Case:
         velocity_scale(bh, c["gravity"]),
         _orientation(dim, float(c["heel"])),
     )
+    rho_g = c["density"] * c["gravity"]
     probes = (
         BodyValue("box_x", 0, "centre", 0),
         BodyValue("box_y", 0, "centre", dim - 1),
@@ -167,6 +178,8 @@ def floating_box(**overrides) -> Case:
         BodyValue("box_force_y", 0, "force", dim - 1),
         WaterLevel("level_left", 3.5 * l0, 0.0, l0),
         WaterLevel("level_right", length - 3.5 * l0, 0.0, l0),
+        PressureLevel("surface_left", 5.5 * l0, 5 * l0, 0.0, rho_g, 2 * l0),
+        PressureLevel("surface_right", length - 5.5 * l0, 5 * l0, 0.0, rho_g, 2 * l0),
     )
     config = {
         **c,

@@ -150,6 +150,35 @@ class StripLevel(AbstractProbe):
         return area / self.width - self.still_depth
 
 
+class PressureLevel(AbstractProbe):
+    """Height [m] above `floor` at which the hydrostatic pressure of the fluid in the
+    strip |x - `x`| < `width`/2 falls to zero: the mean of z_j + P_j / (rho g) over
+    the strip's fluid particles deeper than `below` under its highest one. It is
+    the free surface that the pressure sees (P = 0 is imposed at the surface
+    particles' centres, and the pressure field extrapolates to zero a little below
+    them), and so the level that Archimedes' draft is measured from.
+    """
+
+    name: str
+    x: float
+    width: float
+    floor: float
+    rho_g: float
+    below: float
+
+    def __call__(self, scene: Scene, state: State):
+        del scene
+        fluid = jnp.logical_and(state.active, state.kind == int(Kind.FLUID))
+        strip = fluid & (jnp.abs(state.position[:, 0] - self.x) < 0.5 * self.width)
+        z = state.position[:, -1]
+        top = jnp.max(jnp.where(strip, z, -jnp.inf))
+        deep = strip & (z < top - self.below)
+        count = jnp.sum(deep)
+        level = z + state.pressure / self.rho_g
+        mean = jnp.sum(jnp.where(deep, level, 0.0)) / jnp.maximum(count, 1)
+        return jnp.where(count > 0, mean - self.floor, 0.0)
+
+
 def _tank_frame(
     state: State, anchor: int | None, anchor_x: float
 ) -> Float[Array, " n"]:

@@ -1,0 +1,158 @@
+"""Equilibrium draft of a floating box against Archimedes, over density ratio, box
+aspect ratio, water depth and resolution, for both ways the pressure can act on a
+rigid body (`RigidBodies.pressure`: "fluid", the default of `scenes.floating_box`,
+and "pairs").
+
+Each case is `scenes.floating_box` released at its (lattice-rounded) Archimedes
+draft, run for `--settle` seconds, then observed every few steps for `--window`
+seconds. The draft is measured from the free surface that the pressure sees (the
+`surface_left/right` probes: where the hydrostatic pressure of a strip 3-8 l0 from
+each end wall extrapolates to zero) to the box's bottom face, and, for comparison,
+from the centres of the highest fluid particles 3 l0 from the walls (`level_*`
+minus l0/2). Errors are time means over the window, in units of l0 and in mm.
+
+Run: python validation/floating_draft.py [--quick] [--cases NAME ...]
+(writes results/floating_draft_cpu.{json,md}; --quick runs the 2-D l0 = B/10 and
+B/20 rows only.)
+"""
+
+import argparse
+import json
+import time
+
+import jax
+import numpy as np
+from _common import HERE, machine_info
+
+import jaxmps
+
+BOX_WIDTH = 0.2
+
+
+def case_rows(quick: bool):
+    """(name, overrides) of the matrix: every density ratio at the default box
+    (B = 0.2 m, H = 0.1 m, so B/H = 2) and depth (0.2 m), then aspect ratio B/H
+    and depth one at a time, at each spacing."""
+    rows = []
+    for l0 in (0.02, 0.01) if quick else (0.02, 0.01, 0.005):
+        for ratio in (0.3, 0.5, 0.6, 0.8):
+            rows.append((f"ratio {ratio}", dict(density_ratio=ratio, spacing=l0)))
+        rows.append(("B/H 1", dict(density_ratio=0.5, box_height=0.2, spacing=l0)))
+        # B/H = 0.5 is not stable upright for 0.044 < ratio < 0.956 (GM < 0).
+        rows.append(("B/H 4", dict(density_ratio=0.5, box_width=0.4, spacing=l0)))
+        for depth in (0.1, 0.3):  # 1 and 3 box heights
+            rows.append(
+                (f"depth {depth}", dict(density_ratio=0.6, depth=depth, spacing=l0))
+            )
+    if not quick:
+        rows.append(("3-D ratio 0.6", dict(density_ratio=0.6, spacing=0.02, dim=3)))
+    return rows
+
+
+def measure(overrides, pressure, solver, settle, window, saves):
+    case = jaxmps.scenes.floating_box(
+        body_pressure=pressure, solver=solver, t_end=settle, **overrides
+    )
+    c, dt = case.config, float(case.params.dt)
+    l0, bh = c["spacing"], c["box_height"]
+    settle_steps = round(settle / dt)
+    every = max(1, round(window / dt) // saves)
+    observe = jaxmps.scenes.observe_probes(case.probes)
+    start = time.perf_counter()
+    first = jaxmps.simulate(
+        case.scene, case.params, case.state, settle_steps, settle_steps
+    )
+    out = jaxmps.simulate(
+        case.scene, case.params, first.state, every * saves, every, observe=observe
+    )
+    wall = time.perf_counter() - start
+    s = {k: np.asarray(v) for k, v in out.saved.items()}
+    bottom = s["box_y"] - 0.5 * bh
+    surface = 0.5 * (s["surface_left"] + s["surface_right"])
+    centres = 0.5 * (s["level_left"] + s["level_right"]) - 0.5 * l0
+    target = c["density_ratio"] * bh
+    err = np.mean(surface - bottom) - target
+    err_centres = np.mean(centres - bottom) - target
+    return dict(
+        solver=solver,
+        pressure=pressure,
+        dim=int(c["dim"]),
+        spacing=l0,
+        box_over_l0=round(c["box_width"] / l0),
+        density_ratio=c["density_ratio"],
+        box_height=bh,
+        depth=c["depth"],
+        error_l0=float(err / l0),
+        error_mm=float(err * 1e3),
+        error_centres_l0=float(err_centres / l0),
+        draft_std_l0=float(np.std(surface - bottom) / l0),
+        max_heel_deg=float(np.degrees(np.max(np.abs(s["box_angle"])))),
+        particles=int(case.state.active.sum()),
+        steps=settle_steps + every * saves,
+        wall_s=wall,
+        result=str(out.result),
+    )
+
+
+def markdown(rows, info):
+    lines = [
+        "# Floating box: equilibrium draft against Archimedes",
+        "",
+        f"Machine: {info.get('cpu', '?')}; float64; `validation/floating_draft.py`.",
+        "Error = time-mean draft minus density_ratio x box height, the draft measured",
+        "from the pressure's free surface (`PressureLevel`) to the box's bottom face;",
+        "'centres': from the surface particles' centres instead. Target: |error| <=",
+        "0.3 l0, falling in mm with l0.",
+        "",
+        "| case | solver | pressure | dim | B/l0 | ratio | H [m] | depth [m] |"
+        " error [l0] | error [mm] | centres [l0] | std [l0] | heel [deg] | wall [s] |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    for r in rows:
+        lines.append(
+            f"| {r['case']} | {r['solver']} | {r['pressure']} | {r['dim']} |"
+            f" {r['box_over_l0']} | {r['density_ratio']} | {r['box_height']} |"
+            f" {r['depth']} | {r['error_l0']:+.2f} | {r['error_mm']:+.2f} |"
+            f" {r['error_centres_l0']:+.2f} | {r['draft_std_l0']:.2f} |"
+            f" {r['max_heel_deg']:.2f} | {r['wall_s']:.0f} |"
+        )
+    return "\n".join(lines) + "\n"
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true")
+    parser.add_argument("--settle", type=float, default=2.0)
+    parser.add_argument("--window", type=float, default=1.0)
+    parser.add_argument("--saves", type=int, default=50)
+    parser.add_argument("--solvers", nargs="+", default=["semi_implicit", "explicit"])
+    parser.add_argument("--pressures", nargs="+", default=["fluid", "pairs"])
+    parser.add_argument("--cases", nargs="*", help="only these case names")
+    parser.add_argument("--out", default="floating_draft_cpu")
+    args = parser.parse_args()
+    jax.config.update("jax_enable_x64", True)
+    rows = []
+    path = HERE / "results" / args.out
+    for name, overrides in case_rows(args.quick):
+        if args.cases and name not in args.cases:
+            continue
+        for solver in args.solvers:
+            # The explicit scheme's gradient is the symmetric pair form already:
+            # both settings give the same force.
+            pressures = args.pressures if solver == "semi_implicit" else ["fluid"]
+            for pressure in pressures:
+                row = measure(
+                    overrides, pressure, solver, args.settle, args.window, args.saves
+                )
+                row["case"] = name
+                rows.append(row)
+                print(json.dumps(row), flush=True)
+                info = machine_info()
+                path.with_suffix(".json").write_text(
+                    json.dumps({"machine": info, "rows": rows}, indent=1)
+                )
+                path.with_suffix(".md").write_text(markdown(rows, info))
+
+
+if __name__ == "__main__":
+    main()
