@@ -105,7 +105,9 @@ def _seconds(name: str, value) -> float:
     try:
         value = float(value)
     except (TypeError, ValueError, OverflowError):
-        raise ValueError(f"{name} must be a number of seconds, got {value!r}.") from None
+        raise ValueError(
+            f"{name} must be a number of seconds, got {value!r}."
+        ) from None
     if not (math.isfinite(value) and value > 0):
         raise ValueError(f"{name} must be positive and finite [s], got {value!r}.")
     return value
@@ -132,9 +134,7 @@ def _plan(
     remaining = total_steps if t_now is None else round((t_end - t_now) / dt)
     n_saves, tail = divmod(max(0, remaining), steps_per_save)
     chunk = _largest_divisor(n_saves, int(chunk_saves)) if n_saves else 0
-    return _Plan(
-        steps_per_save=steps_per_save, n_saves=n_saves, chunk=chunk, tail=tail
-    )
+    return _Plan(steps_per_save=steps_per_save, n_saves=n_saves, chunk=chunk, tail=tail)
 
 
 def check_output(

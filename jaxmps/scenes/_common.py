@@ -64,6 +64,16 @@ def resolve(name: str, specific: dict[str, Any], overrides: dict[str, Any]) -> d
     for key, value in overrides.items():
         _check_type(name, key, defaults[key], value)
         _check_range(name, key, value)
+    # Numbers as Python numbers: whole for counts, float for the rest (a value
+    # given as `--set gravity=0` or numpy.float32(9.81) is the float 0.0, 9.81).
+    overrides = {
+        key: value
+        if value is None or isinstance(value, (bool, np.bool_, str))
+        else int(value)
+        if key in _WHOLE
+        else float(value)
+        for key, value in overrides.items()
+    }
     config = {**defaults, **overrides}
     if config["solver"] not in SOLVERS:
         raise ValueError(
@@ -189,6 +199,8 @@ RULES = {
     "mu_static": _NON_NEGATIVE,
     "mu_kinetic": _NON_NEGATIVE,
 }
+
+
 def _check_range(scene: str, key: str, value: Any) -> None:
     """A numeric override lies in the range `RULES` gives for its name (ValueError
     naming the setting and the range)."""
@@ -228,9 +240,7 @@ def _check_type(scene: str, key: str, default: Any, value: Any) -> None:
     elif isinstance(default, str):
         ok, want = isinstance(value, str), "a word"
     elif key in _WHOLE:
-        ok = (number and _whole(value)) or (
-            default is None and value is None
-        )
+        ok = (number and _whole(value)) or (default is None and value is None)
         want = "a whole number" + (" or None" if default is None else "")
     else:
         ok = number or (default is None and value is None)
