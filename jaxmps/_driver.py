@@ -2,6 +2,7 @@
 
 import contextlib
 import dataclasses
+import itertools
 import math
 import os
 import signal
@@ -113,6 +114,10 @@ def _seconds(name: str, value) -> float:
     return value
 
 
+# State.step is an int32.
+_MAX_STEPS = 2**31 - 1
+
+
 def _plan(
     dt: float, t_end: float, save_every: float, t_now: float | None, chunk_saves: int
 ) -> _Plan:
@@ -130,6 +135,11 @@ def _plan(
     if not int(chunk_saves) >= 1:
         raise ValueError(f"chunk_saves must be at least 1, got {chunk_saves!r}.")
     total_steps = max(1, round(t_end / dt))
+    if total_steps > _MAX_STEPS:
+        raise ValueError(
+            f"t_end={t_end:g} s is {total_steps:.3g} steps of dt={dt:.4g} s, beyond "
+            f"the {_MAX_STEPS} steps a run counts; lower `t_end` or raise `dt`."
+        )
     steps_per_save = max(1, min(total_steps, round(save_every / dt)))
     remaining = total_steps if t_now is None else round((t_end - t_now) / dt)
     n_saves, tail = divmod(max(0, remaining), steps_per_save)
@@ -446,9 +456,12 @@ def run(
                 if writer is not None:
                     writer.move_to(out)
             label = f"{case.name} (t_end={t_end:g} s)"
-            chunks = [plan] * (plan.n_saves // plan.chunk if plan.chunk else 0)
+            chunks = itertools.repeat(
+                plan, plan.n_saves // plan.chunk if plan.chunk else 0
+            )
             if plan.tail:
-                chunks.append(_Plan(steps_per_save=plan.tail, n_saves=1, chunk=1))
+                last = _Plan(steps_per_save=plan.tail, n_saves=1, chunk=1)
+                chunks = itertools.chain(chunks, [last])
             with _progress(progress, plan, label) as bar:
                 for part in chunks:
                     if received:

@@ -90,3 +90,38 @@ def test_an_unknown_particle_kind_is_refused():
     scene = jaxmps.make_scene(position, 0.1, ([0, 0], [1, 1]))
     with pytest.raises(ValueError, match=r"kind holds \[9\].*valid: 0 \(fluid\)"):
         jaxmps.make_state(scene, position, [0, 9])
+
+
+# ------------------------------------------------------------ one entry, one rule
+
+
+def test_inputs_refused_alike_by_every_entry_point():
+    """Values one entry point refused and another accepted, or clamped silently."""
+    from jaxmps.calibration import Curve
+
+    position = np.array([[0.1, 0.1], [0.2, 0.1]])
+    with pytest.raises(ValueError, match="spacing must be positive and finite"):
+        jaxmps.make_scene(position, 1e300, ([0, 0], [1, 1]))
+    with pytest.raises(ValueError, match=r"Params.gravity must be finite"):
+        jaxmps.make_params(2, dt=1e-3, gravity=float("nan"))
+    with pytest.raises(ValueError, match=r"Params.density must be positive and fin"):
+        jaxmps.make_params(2, dt=1e-3, density=float("inf"))
+    with pytest.raises(ValueError, match=r"Params.rigid.density must be positive"):
+        jaxmps._params.RigidParams(
+            density=np.array([np.inf]), mu_static=np.zeros(1), mu_kinetic=np.zeros(1)
+        )
+    with pytest.raises(ValueError, match=r"Curve.values must be finite"):
+        Curve(times=np.array([0.0, 1.0]), values=np.array([np.nan, 1.0]))
+    case = jaxmps.scenes.hydrostatic(spacing=0.05)
+    with pytest.raises(ValueError, match=r"chunk must be a whole number >= 1"):
+        jaxmps.sweep(case, {"viscosity": np.ones(2) * 1e-6}, 2, 2, chunk=0)
+    with pytest.raises(ValueError, match=r"iterations must be at least 1"):
+        jaxmps.calibrate(
+            case,
+            {"viscosity": None},
+            Curve(times=np.array([0.0, 1.0]), values=np.zeros(2)),
+            "water_level",
+            2,
+            2,
+            iterations=0,
+        )

@@ -45,7 +45,7 @@ def _check_size(counts: np.ndarray, spacing: float) -> None:
             f"(about {total * per / 2**30:.3g} GiB to run), above the limit of "
             f"{limit:.3g} (the machine's memory, or JAXMPS_MAX_PARTICLES); raise "
             f"`spacing` (x{(total / limit) ** (1 / dim):.2g} at least) or shrink "
-            "the scene."
+            "the scene's lengths."
         )
 
 

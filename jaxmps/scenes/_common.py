@@ -123,20 +123,29 @@ class Range:
         def shown(bound):
             return str(int(bound)) if float(bound).is_integer() else f"{bound:g}"
 
-        if self.low is not None and self.high is not None:
+        bounded = self.low is not None and self.high is not None
+        if bounded and not (self.low == 0 and self.high >= 1000):
             left = "(" if self.open_low else "["
             right = ")" if self.open_high else "]"
             return f"finite, in {left}{shown(self.low)}, {shown(self.high)}{right}"
         if self.low == 0:
-            return "positive and finite" if self.open_low else "finite and >= 0"
-        if self.low is not None:
-            return f"finite and {'>' if self.open_low else '>='} {shown(self.low)}"
-        return "finite"
+            text = "positive and finite" if self.open_low else "finite and >= 0"
+        elif self.low is not None:
+            text = f"finite and {'>' if self.open_low else '>='} {shown(self.low)}"
+        else:
+            text = "finite"
+        if self.high is not None:
+            text += f", {'below' if self.open_high else 'at most'} {shown(self.high)}"
+        return text
 
 
 _FINITE = Range()
 _POSITIVE = Range(0, open_low=True)
 _NON_NEGATIVE = Range(0)
+# Lengths [m] up to 10 km: beyond, products like spacing^2 leave float range long
+# before any scene makes sense.
+_LENGTH = Range(0, 1e4, open_low=True)
+_OFFSET = Range(0, 1e4)
 _COUNT = Range(1, 2**31 - 1)
 _ANGLE = Range(-90, 90, open_low=True, open_high=True)
 
@@ -156,30 +165,30 @@ RULES = {
     "max_neighbours": _COUNT,
     "candidate_capacity": _COUNT,
     "courant": Range(0, 1, open_low=True),
-    "domain_margin": _NON_NEGATIVE,
+    "domain_margin": _OFFSET,
     # lengths [m]
-    "spacing": _POSITIVE,
-    "width": _POSITIVE,
-    "depth": _POSITIVE,
-    "tank_length": _POSITIVE,
-    "tank_height": _POSITIVE,
-    "tank_width": _POSITIVE,
-    "column_width": _POSITIVE,
-    "column_height": _POSITIVE,
-    "box_width": _POSITIVE,
-    "box_height": _POSITIVE,
-    "block_size": _POSITIVE,
-    "floor_length": _POSITIVE,
-    "bed_length": _POSITIVE,
-    "bottom_width": _POSITIVE,
-    "inflow_depth": _POSITIVE,
-    "box_x": _NON_NEGATIVE,
-    "gauge_x": _FINITE,
-    "gap": _NON_NEGATIVE,
-    "weir_height": _NON_NEGATIVE,
-    "initial_draft": _NON_NEGATIVE,
-    "amplitude": _NON_NEGATIVE,
-    "stroke": _NON_NEGATIVE,
+    "spacing": _LENGTH,
+    "width": _LENGTH,
+    "depth": _LENGTH,
+    "tank_length": _LENGTH,
+    "tank_height": _LENGTH,
+    "tank_width": _LENGTH,
+    "column_width": _LENGTH,
+    "column_height": _LENGTH,
+    "box_width": _LENGTH,
+    "box_height": _LENGTH,
+    "block_size": _LENGTH,
+    "floor_length": _LENGTH,
+    "bed_length": _LENGTH,
+    "bottom_width": _LENGTH,
+    "inflow_depth": _LENGTH,
+    "box_x": _OFFSET,
+    "gauge_x": Range(-1e4, 1e4),
+    "gap": _OFFSET,
+    "weir_height": _OFFSET,
+    "initial_draft": _OFFSET,
+    "amplitude": _OFFSET,
+    "stroke": _OFFSET,
     # angles [degrees] and slopes
     "angle": _ANGLE,
     "heel": _ANGLE,
