@@ -142,6 +142,17 @@ def _cmd_info(args) -> int:
     from .io import read_run
 
     data = read_run(args.file)
+    try:
+        return _describe(data)
+    except (KeyError, IndexError, TypeError) as e:
+        raise UsageError(
+            f"'{args.file}' is a damaged run file: {type(e).__name__} {e} while "
+            "describing it."
+        ) from None
+
+
+def _describe(data) -> int:
+    """Print what a run file holds."""
     a = data.attrs
     print(
         f"{data.path}: jaxmps run file (format_version {a.get('format_version')}, "

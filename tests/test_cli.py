@@ -222,3 +222,16 @@ def test_an_internal_error_is_one_line_unless_debug(monkeypatch, capsys):
         main(["scenes", "--debug"])
     with pytest.raises(KeyError, match="a bug"):
         main(["--debug", "scenes"])
+
+
+def test_info_of_a_run_file_missing_a_dataset(tmp_path, run_file, capsys):
+    import shutil
+
+    import h5py
+
+    damaged = tmp_path / "damaged.h5"
+    shutil.copy(run_file, damaged)
+    with h5py.File(damaged, "r+") as f:
+        del f["particles/kind"]
+    err = _one_line_error(capsys, ["info", str(damaged)])
+    assert err.startswith("jaxmps info: error: ") and "damaged run file" in err
