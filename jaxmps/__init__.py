@@ -34,6 +34,7 @@ from ._build import make_scene as make_scene
 from ._build import make_state as make_state
 from ._coupling import Coupling as Coupling
 from ._coupling import FluidLoad as FluidLoad
+from ._driver import RunInterrupted as RunInterrupted
 from ._driver import run as run
 from ._params import Params as Params
 from ._result import Result as Result

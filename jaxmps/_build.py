@@ -69,8 +69,8 @@ def make_scene(
     position = np.asarray(position, dtype=np.float64)
     capacity = _capacity(position, capacity)
     scheme = schemes.standard() if scheme is None else scheme
-    if not spacing > 0:
-        raise ValueError(f"spacing must be positive, got {spacing!r}.")
+    if not (spacing > 0 and math.isfinite(spacing * spacing)):
+        raise ValueError(f"spacing must be positive and finite, got {spacing!r}.")
     dim = position.shape[1]
     n0, lam = reference_constants(scheme.weight, dim, scheme.r_e)
     discretisation = Discretisation(

@@ -9,6 +9,7 @@ import numpy as np
 
 from ._numerics import is_concrete
 from ._params import Params
+from ._params import check_values as check_values
 from ._scene import Scene
 from ._state import State
 

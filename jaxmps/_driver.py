@@ -2,8 +2,11 @@
 
 import contextlib
 import dataclasses
+import itertools
 import math
 import os
+import signal
+import threading
 import time as _time
 from pathlib import Path
 from typing import Any
@@ -13,12 +16,16 @@ import jax
 import numpy as np
 from jaxtyping import Array, ArrayLike, Int
 
+from ._checks import check_compatible
 from ._result import Result, result_code
 from ._scene import Scene
 from ._simulate import Frame, frame, simulate
 from ._state import State
 from .io import RunWriter, load_state
 from .scenes import Case
+
+# A run file's name ends in one of these; its sidecar is the same name with .xdmf.
+RUN_SUFFIXES = (".h5", ".hdf5")
 
 
 class _Observer(eqx.Module):
@@ -55,14 +62,33 @@ class RunResult:
     wall_time: float
 
 
+class RunInterrupted(KeyboardInterrupt):
+    """A run stopped by SIGINT or SIGTERM once the chunk being computed was written.
+
+    Attributes:
+        signal: the signal's number.
+        path: the run file, holding every frame written and the last one's state.
+        time: the simulated time of that state [s].
+    """
+
+    def __init__(self, signum: int, path: Path | None, time: float):
+        self.signal, self.path, self.time = signum, path, time
+        where = f"; '{path}' holds every frame to there" if path is not None else ""
+        super().__init__(
+            f"stopped by {signal.Signals(signum).name} at t={time:.6g} s{where}"
+        )
+
+
 @dataclasses.dataclass(frozen=True)
 class _Plan:
     """The saves a run makes: `n_saves` saves of `steps_per_save` steps, computed in
-    chunks of `chunk` saves (one compiled program)."""
+    chunks of `chunk` saves (one compiled program), then a last save of `tail`
+    (< `steps_per_save`) steps that ends the run within a step of `t_end`."""
 
     steps_per_save: int
     n_saves: int
     chunk: int
+    tail: int = 0
 
 
 def _largest_divisor(n: int, limit: int) -> int:
@@ -81,32 +107,157 @@ def _rows(tree, stop: int):
     return jax.tree_util.tree_map(lambda x: x[:stop], tree)
 
 
+def _seconds(name: str, value) -> float:
+    """A positive, finite time [s] (ValueError naming `name`)."""
+    try:
+        value = float(value)
+    except (TypeError, ValueError, OverflowError):
+        raise ValueError(
+            f"{name} must be a number of seconds, got {value!r}."
+        ) from None
+    if not (math.isfinite(value) and value > 0):
+        raise ValueError(f"{name} must be positive and finite [s], got {value!r}.")
+    return value
+
+
+# State.step is an int32.
+_MAX_STEPS = 2**31 - 1
+
+
 def _plan(
     dt: float, t_end: float, save_every: float, t_now: float | None, chunk_saves: int
 ) -> _Plan:
     """Steps per save (save_every rounded to whole steps) and the saves to make: to
     `t_end` from the start, or on restart from `t_now` at this dt (a restart may
-    change dt)."""
-    if not t_end > 0:
-        raise ValueError(f"t_end must be positive, got {t_end}.")
-    if not save_every > 0:
-        raise ValueError(f"save_every must be positive, got {save_every}.")
+    change dt). The last save is shortened so that the run ends at the step
+    nearest `t_end`."""
+    t_end = _seconds("t_end", t_end)
+    save_every = _seconds("save_every", save_every)
+    if t_now is None and dt > t_end:
+        raise ValueError(
+            f"t_end={t_end:g} s is shorter than one time step (dt={dt:.4g} s); "
+            "raise `t_end` or give a smaller `dt`."
+        )
+    if not int(chunk_saves) >= 1:
+        raise ValueError(f"chunk_saves must be at least 1, got {chunk_saves!r}.")
     total_steps = max(1, round(t_end / dt))
+    if total_steps > _MAX_STEPS:
+        raise ValueError(
+            f"t_end={t_end:g} s is {total_steps:.3g} steps of dt={dt:.4g} s, beyond "
+            f"the {_MAX_STEPS} steps a run counts; lower `t_end` or raise `dt`."
+        )
     steps_per_save = max(1, min(total_steps, round(save_every / dt)))
     remaining = total_steps if t_now is None else round((t_end - t_now) / dt)
-    n_saves = math.ceil(max(0, remaining) / steps_per_save)
+    n_saves, tail = divmod(max(0, remaining), steps_per_save)
     chunk = _largest_divisor(n_saves, int(chunk_saves)) if n_saves else 0
-    return _Plan(steps_per_save=steps_per_save, n_saves=n_saves, chunk=chunk)
+    return _Plan(steps_per_save=steps_per_save, n_saves=n_saves, chunk=chunk, tail=tail)
+
+
+def check_output(
+    out: str | os.PathLike,
+    *,
+    overwrite: bool = False,
+    append: bool = False,
+    name: str = "out",
+) -> Path:
+    """Refuse an output path that a run must not write (ValueError naming `name`):
+    a suffix other than `RUN_SUFFIXES`, a directory, an existing file or sidecar
+    (unless `overwrite`, or `append` to continue the file itself), a folder that
+    is not one or cannot be written.
+
+    Returns:
+        The path.
+    """
+    out = Path(out)
+    if out.suffix.lower() not in RUN_SUFFIXES:
+        raise ValueError(
+            f"{name} '{out}' must end in .h5 or .hdf5 (the run file; its ParaView "
+            "sidecar is written next to it with .xdmf)."
+        )
+    if out.is_dir():
+        raise ValueError(f"{name} '{out}' is a directory; name a run file in it.")
+    if not append and not overwrite:
+        for path in (out, out.with_suffix(".xdmf")):
+            if path.exists():
+                raise ValueError(
+                    f"{name} '{out}': '{path}' exists. Give --overwrite "
+                    "(`overwrite=True`) to replace it, --restart to continue the "
+                    "run it holds, or another name."
+                )
+    folder = out.parent
+    while not folder.exists() and folder != folder.parent:
+        folder = folder.parent
+    if not folder.is_dir():
+        raise ValueError(f"{name} '{out}': '{folder}' is not a directory.")
+    if not os.access(folder, os.W_OK | os.X_OK):
+        raise ValueError(f"{name} '{out}': the directory '{folder}' is not writable.")
+    return out
+
+
+def _staging(out: Path) -> Path:
+    """The name a new run file is written under until its first frame exists."""
+    return out.with_name(f".{out.name}.partial")
+
+
+def _check_precision(path: Path, case) -> None:
+    """Refuse to continue a run file in another float precision (its datasets
+    would silently round the new steps, or the restored state lose digits)."""
+    import h5py
+
+    with h5py.File(path, "r") as f:
+        stored = f["state/position"].dtype if "state/position" in f else None
+    wanted = np.dtype(case.state.position.dtype)
+    if stored is not None and np.dtype(stored) != wanted:
+        flag = "with --x64" if np.dtype(stored).itemsize == 8 else "without --x64"
+        raise ValueError(
+            f"'{path}' holds a {np.dtype(stored).name} run but this one computes in "
+            f"{wanted.name}; continue it {flag} (in Python: "
+            f"jax.config.update('jax_enable_x64', {np.dtype(stored).itemsize == 8}) "
+            "before building the case)."
+        )
+
+
+@contextlib.contextmanager
+def _deferred_signals():
+    """Record SIGINT and SIGTERM instead of stopping at once, so that the chunk
+    being computed is written before the run stops; a second signal stops at
+    once (KeyboardInterrupt, the file still closed properly). Only in the main
+    thread, where Python delivers signals."""
+    received: list[int] = []
+    if threading.current_thread() is not threading.main_thread():
+        yield received
+        return
+
+    def record(signum, _):
+        if received:
+            raise KeyboardInterrupt
+        received.append(signum)
+
+    previous = {s: signal.signal(s, record) for s in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        yield received
+    finally:
+        for s, handler in previous.items():
+            signal.signal(s, signal.SIG_DFL if handler is None else handler)
 
 
 def _open_writer(
     out: Path | None, case: Case, append: bool, done: int
 ) -> RunWriter | None:
-    """The run file's writer (None without `out`); when appending, the frames
-    computed after the state a restart continues from are dropped first."""
+    """The run file's writer (None without `out`): a new file under its staging
+    name, moved to `out` by `_publish`; when appending, the frames computed after
+    the state a restart continues from are dropped first."""
     if out is None:
         return None
-    writer = RunWriter(out, case, append=append)
+    if not append:
+        try:
+            out.parent.mkdir(parents=True, exist_ok=True)
+            return RunWriter(_staging(out), case, sidecar=False)
+        except OSError as e:
+            raise OSError(
+                e.errno, f"Cannot create the run file '{out}': {e.strerror or e}."
+            ) from e
+    writer = RunWriter(out, case, append=True)
     if append:
         frames = writer.file["frames"]
         steps = frames["step"][...] if "step" in frames else []
@@ -210,12 +361,12 @@ def _last_good(
 
 def _progress(show: bool, plan: _Plan, label: str):
     """A progress bar over the run's steps (shown after 3 s), or a null context."""
-    if not (show and plan.n_saves):
+    if not (show and (plan.n_saves or plan.tail)):
         return contextlib.nullcontext(None)
     from tqdm.auto import tqdm
 
     return tqdm(
-        total=plan.n_saves * plan.steps_per_save,
+        total=plan.n_saves * plan.steps_per_save + plan.tail,
         delay=3.0,
         unit="step",
         desc=label,
@@ -241,20 +392,31 @@ def run(
     chunk_saves: int = 20,
     restart: bool = False,
     restart_from: str | os.PathLike | None = None,
+    overwrite: bool = False,
 ) -> RunResult:
     """Run a case to `t_end` on the host, in chunks of `simulate`, saving as it goes.
 
     The run is `n_saves` saves of `save_every` each; they are computed in chunks of an
     equal number of saves (the largest divisor of `n_saves` not above `chunk_saves`)
-    so that `simulate` compiles once. Between chunks the frames and probes are appended
-    to the run file and `/state` is updated. Each chunk runs with `throw=False`; its
+    so that `simulate` compiles once; a last, shorter save ends the run at the
+    step nearest `t_end`. Between chunks the frames and probes are appended to the
+    run file and `/state` is updated. Each chunk runs with `throw=False`; its
     result is checked on the host.
+
+    The run file is never lost or clobbered: the arguments, the restart file and
+    the case's settings are checked before any file is touched; a new file is
+    written as `.NAME.partial` next to `out` and moved to `out` (`os.replace`)
+    once its first frame exists; from then on it holds every frame written and,
+    in `/state`, the last one's state, whatever stops the run (a failure, an
+    exception, a full disk, SIGINT or SIGTERM: the chunk being computed is
+    finished and written first, and a second signal stops at once).
 
     Args:
         case: a `jaxmps.scenes.Case`.
         t_end: simulated end time [s] (default `case.t_end`). On restart, the total time
             of the run, not the time to add.
-        out: run file (`.h5`) to write, with an `.xdmf` sidecar; None writes nothing.
+        out: run file (`.h5` or `.hdf5`) to write, with an `.xdmf` sidecar; None
+            writes nothing.
         save_every: simulated time between saves [s] (default: t_end / 100), rounded
             to a whole number of steps.
         progress: show a progress bar when the run takes more than a few seconds.
@@ -262,6 +424,9 @@ def run(
         restart: continue from `/state` of `out` and append to it.
         restart_from: continue from `/state` of this file (appending to it if it is
             `out`; otherwise `out` is a new file starting at the restored state).
+        overwrite: replace an existing `out` (and its sidecar); without it an
+            existing file is refused, as by `jaxmps run` without `--overwrite`.
+            The old file stays until the new one has its first frame.
 
     Returns:
         A `RunResult`.
@@ -271,27 +436,58 @@ def run(
             simulated time); what was computed is written first: every frame up to
             the failure, and in `/state` the state of the last successful save,
             which a restart continues from.
-        ValueError: for inconsistent arguments or an unusable restart file.
+        RunInterrupted: (a KeyboardInterrupt) on SIGINT or SIGTERM, after writing
+            the chunk being computed.
+        ValueError: for inconsistent arguments, an output path that must not be
+            written, settings the case cannot run with, or an unusable restart
+            file (a float64 file continued in float32 or the reverse included).
+        OSError: if writing the run file failed (e.g. the disk is full), naming
+            the file, which keeps what was written before.
     """
     started = _time.perf_counter()
-    t_end = float(case.t_end if t_end is None else t_end)
-    save_every = t_end / 100 if save_every is None else float(save_every)
+    t_end = _seconds("t_end", case.t_end if t_end is None else t_end)
+    save_every = t_end / 100 if save_every is None else save_every
+    save_every = _seconds("save_every", save_every)
     out = None if out is None else Path(out)
     restart_from, append = _restart_source(out, restart, restart_from)
-    state = case.state if restart_from is None else load_state(restart_from, case)
+    if out is not None:
+        check_output(out, overwrite=overwrite, append=append)
+    state = case.state
+    if restart_from is not None:
+        if not restart_from.exists():
+            raise ValueError(f"Restart file '{restart_from}' does not exist.")
+        state = load_state(restart_from, case)
+        _check_precision(restart_from, case)
+    # Settings the case cannot run with are refused before any file is touched.
+    check_compatible(case.scene, case.params, state)
     t_now = None if restart_from is None else float(np.asarray(state.time))
     dt = float(np.asarray(case.params.dt))
     plan = _plan(dt, t_end, save_every, t_now, chunk_saves)
     done = int(np.asarray(state.step))
 
-    writer = _open_writer(out, case, append, done)
-    try:
-        label = f"{case.name} (t_end={t_end:g} s)"
-        with _progress(progress, plan, label) as bar:
-            state, rows = _saves(case, state, plan, writer, out, append, bar)
-    finally:
-        if writer is not None:
-            writer.close()
+    writer = None
+    with _deferred_signals() as received:
+        try:
+            writer = _open_writer(out, case, append, done)
+            label = f"{case.name} (t_end={t_end:g} s)"
+            with _progress(progress, plan, label) as bar:
+                state, rows = _saves(
+                    case, state, plan, writer, out, append, bar, received
+                )
+        except OSError as e:
+            if writer is None or writer.path != out:
+                raise
+            raise OSError(
+                e.errno,
+                f"Writing the run file '{out}' failed ({e.strerror or e}); it keeps "
+                "every frame written before, and in /state the last one's state, "
+                "to restart from.",
+            ) from e
+        finally:
+            if writer is not None:
+                writer.close()
+                if out is not None and writer.path != out:
+                    writer.path.unlink(missing_ok=True)
     return RunResult(
         state=state,
         probes=_gather(rows),
@@ -327,14 +523,30 @@ def _saves(
     out: Path | None,
     append: bool,
     bar: Any,
+    received: list[int],
 ) -> tuple[State, list[dict]]:
-    """Make the plan's saves chunk by chunk (and the first frame, unless appending):
-    the final state and the probe rows of every save."""
+    """Make the plan's saves chunk by chunk (and the first frame, unless appending,
+    which moves a new run file into place): the final state and the probe rows of
+    every save. A signal in `received` stops the run between chunks
+    (`RunInterrupted`)."""
     observer = _Observer(probes=tuple(case.probes))
-    rows = [] if append else [_first_frame(observer, case, state, writer)]
-    for _ in range(plan.n_saves // plan.chunk if plan.chunk else 0):
-        state, values = _chunk(case, observer, state, plan, writer, out)
+    rows = []
+    if not append:
+        rows.append(_first_frame(observer, case, state, writer))
+        if writer is not None:
+            writer.move_to(out)
+    chunks = itertools.repeat(plan, plan.n_saves // plan.chunk if plan.chunk else 0)
+    if plan.tail:
+        chunks = itertools.chain(
+            chunks, [_Plan(steps_per_save=plan.tail, n_saves=1, chunk=1)]
+        )
+    for part in chunks:
+        if received:
+            break
+        state, values = _chunk(case, observer, state, part, writer, out)
         rows.append(values)
         if bar is not None:
-            bar.update(plan.chunk * plan.steps_per_save)
+            bar.update(part.chunk * part.steps_per_save)
+    if received:
+        raise RunInterrupted(received[0], out, float(np.asarray(state.time)))
     return state, rows

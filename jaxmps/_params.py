@@ -1,10 +1,60 @@
 """Params: the differentiable, vmappable float parameters of a simulation."""
 
+import dataclasses
+
 import equinox as eqx
 import jax.numpy as jnp
+import numpy as np
 from jaxtyping import Array, Float
 
 from ._numerics import is_concrete
+
+# The values a Params field accepts (a field not listed must be finite):
+# "positive" or ">= 0", and finite.
+VALUE_RULES = {
+    "density": "positive",
+    "dt": "positive",
+    "beta": "positive",
+    "sound_speed": "positive",
+    "viscosity": ">= 0",
+    "rigid.density": "positive",
+    "rigid.mu_static": ">= 0",
+    "rigid.mu_kinetic": ">= 0",
+}
+
+
+def _check_fields(module, prefix: str, where: str, nested: bool) -> None:
+    """Check the concrete array fields of `module` against `VALUE_RULES` (named
+    `prefix` + field), and with `nested` those of its sub-params."""
+    for field in dataclasses.fields(module):
+        value = getattr(module, field.name)
+        name = prefix + field.name
+        if value is None:
+            continue
+        if dataclasses.is_dataclass(value):
+            if nested:
+                _check_fields(value, name + ".", where, nested)
+            continue
+        if not is_concrete(value):
+            continue
+        array = np.asarray(value, dtype=float)
+        rule = VALUE_RULES.get(name, "finite")
+        good = np.isfinite(array)
+        if rule == "positive":
+            good &= array > 0
+        elif rule == ">= 0":
+            good &= array >= 0
+        if not np.all(good):
+            shown = array.item() if array.size == 1 else array.tolist()
+            want = "finite" if rule == "finite" else f"{rule} and finite"
+            raise ValueError(f"{where}Params.{name} must be {want}, got {shown}.")
+
+
+def check_values(params, where: str = "") -> None:
+    """Refuse concrete Params values outside `VALUE_RULES` or not finite, sub-params
+    included (ValueError naming the field, after `where`, e.g. a sweep member);
+    traced values pass (the run-time result codes apply)."""
+    _check_fields(params, "", where, nested=True)
 
 
 class InflowParams(eqx.Module):
@@ -60,8 +110,10 @@ class RigidParams(eqx.Module):
             if not is_concrete(value):
                 continue
             bad = ~(value > 0) if name == "density" else ~(value >= 0)
+            bad |= ~jnp.isfinite(value)
             if bool(jnp.any(bad)):
                 sign = "positive" if name == "density" else ">= 0"
+                sign += " and finite"
                 raise ValueError(
                     f"Params.rigid.{name} must be {sign} for every body, got "
                     f"{jnp.asarray(value).tolist()}."
@@ -97,15 +149,5 @@ class Params(eqx.Module):
     rigid: RigidParams | None = None
 
     def __check_init__(self):
-        # Only concrete scalars can be checked; traced or batched values pass through.
-        for name in ("density", "dt", "beta", "sound_speed"):
-            value = getattr(self, name)
-            if not is_concrete(value) or jnp.ndim(value) != 0:
-                continue
-            if not float(value) > 0:
-                raise ValueError(f"Params.{name} must be positive, got {float(value)}.")
-        if is_concrete(self.viscosity) and jnp.ndim(self.viscosity) == 0:
-            if not float(self.viscosity) >= 0:
-                raise ValueError(
-                    f"Params.viscosity must be >= 0, got {float(self.viscosity)}."
-                )
+        # Only concrete values can be checked; traced values pass through.
+        _check_fields(self, "", "", nested=False)

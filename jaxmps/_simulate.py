@@ -6,6 +6,7 @@ from typing import Any, Literal
 
 import equinox as eqx
 import jax
+import numpy as np
 from jaxtyping import Array, Float, PyTree
 
 from ._checks import check_compatible
@@ -134,6 +135,12 @@ def simulate(
 
 def _check_steps(n_steps: int, save_every: int | None) -> None:
     save_every = n_steps if save_every is None else save_every
+    for name, value in (("n_steps", n_steps), ("save_every", save_every)):
+        if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
+            raise ValueError(
+                f"{name} must be a whole number of steps, got {value!r} "
+                f"({type(value).__name__})."
+            )
     if save_every < 1 or n_steps < 1 or n_steps % save_every:
         raise ValueError(
             f"n_steps={n_steps} must be a positive multiple of save_every={save_every}."

@@ -152,3 +152,78 @@ def test_simulate_before_and_after_a_sweep_of_the_same_shapes(case):
     after = jaxmps.simulate(case.scene, case.params, case.state, 20, 10, obs)
     np.testing.assert_array_equal(after.saved["front"], before.saved["front"])
     np.testing.assert_allclose(res.saved["front"][0], before.saved["front"], rtol=1e-10)
+
+
+def test_sweep_checks_every_member_as_a_single_run(case):
+    """A value `make_params` refuses is refused in a sweep too, naming the member."""
+    with pytest.raises(ValueError, match="Params.density must be positive"):
+        jaxmps.make_params(2, dt=1e-3, density=-1000.0)
+    bad = {
+        "density": ([1000.0, -1000.0], r"member 1 \(density=-1000.0\).*positive"),
+        "viscosity": ([1e-6, np.nan], r"member 1 \(viscosity=nan\).*finite"),
+        "beta": ([np.inf], r"member 0 \(beta=inf\).*finite"),
+    }
+    for name, (values, message) in bad.items():
+        with pytest.raises(ValueError, match=message):
+            jaxmps.sweep(case, {name: np.asarray(values)}, n_steps=2)
+    with pytest.raises(ValueError, match="'viscosity' must be numbers"):
+        jaxmps.sweep(case, {"viscosity": ["thick", "thin"]}, n_steps=2)
+    with pytest.raises(ValueError, match="at least one member"):
+        jaxmps.sweep(case, {"viscosity": []}, n_steps=2)
+    with pytest.raises(ValueError, match="Nothing to sweep"):
+        jaxmps.sweep(case, {}, n_steps=2)
+
+
+def test_sweep_reports_a_failed_member():
+    """A member whose run fails (a time step far beyond the Courant limit, which
+    only the run finds) is reported with its message; the other succeeds."""
+    small = jaxmps.scenes.hydrostatic(spacing=0.05)
+    dt = float(small.params.dt)
+    res = jaxmps.sweep(small, {"dt": np.array([dt, 40 * dt])}, 4, 2)
+    failed = res.failed()
+    assert list(failed) == [1] and res.messages()[0] == "successful"
+    code = int(np.asarray(res.result)[1])
+    assert failed[1] == jaxmps.Result[jaxmps._result.result_from_code(code)]
+    assert "Courant" in failed[1] or "left the domain" in failed[1]
+
+
+def test_calibrate_stops_at_a_failed_rollout_and_says_which():
+    """An optimiser that multiplies the viscosity by e^3 per iteration takes it
+    past the viscous limit at iterate 2: the fit stops there, its status and result
+    code say so, and it returns iterate 1."""
+    small = jaxmps.scenes.hydrostatic(spacing=0.05)
+    scene, dt = small.scene, float(small.params.dt)
+    start = 0.2 * scene.lam / (2 * scene.dim * dt)  # viscous number 0.2
+    obs = jaxmps.scenes.observe_probes(small.probes)
+    tr = jaxmps.simulate(scene, small.params, small.state, 2, 1, obs)
+    curve = Curve(
+        times=np.asarray(tr.saved["time"]),
+        values=np.asarray(tr.saved["pressure_bottom"]),
+    )
+    jump = optax.GradientTransformation(
+        lambda params: optax.EmptyState(),
+        lambda updates, state, params=None: (
+            jax.tree.map(lambda g: jnp.full_like(g, 3.0), updates),
+            state,
+        ),
+    )
+    with pytest.warns(UserWarning, match=r"iterate 2 \(viscosity=.*\) failed"):
+        res = calibrate(
+            small,
+            {"viscosity": Log()},
+            curve,
+            "pressure_bottom",
+            2,
+            1,
+            optimiser=jump,
+            iterations=5,
+            initial={"viscosity": start},
+            progress=False,
+            checkpoint=False,
+        )
+    assert res.status == "rollout_failed" and res.iterations == 2
+    assert res.result == int(jaxmps._result.result_code(jaxmps.Result.step_too_large))
+    assert "viscous number" in res.message
+    assert res.best_iteration == 1
+    assert res.values["viscosity"] == pytest.approx(start)
+    assert np.isfinite(res.best_loss)

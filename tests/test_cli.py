@@ -1,5 +1,7 @@
 """The `jaxmps` command line: scenes, run, info, plot, and usage errors."""
 
+import re
+
 import numpy as np
 import pytest
 
@@ -122,3 +124,114 @@ def test_run_and_info_with_a_rigid_body(tmp_path, capsys):
     capsys.readouterr()
     assert main(["info", str(out)]) == 0
     assert "bodies   1 rigid" in capsys.readouterr().out
+
+
+# ------------------------------------------------------------ one line, exit 2
+
+
+def _one_line_error(capsys, argv, code=2):
+    with pytest.raises(SystemExit) as exit_:
+        main(argv)
+    assert exit_.value.code == code
+    err = capsys.readouterr().err
+    assert "Traceback" not in err and len(err.strip().splitlines()) == 1, err
+    return err
+
+
+@pytest.mark.parametrize(
+    "argv, message",
+    [
+        (["--t-end", "nan"], "--t-end must be positive and finite"),
+        (["--t-end", "-1"], "--t-end must be positive and finite"),
+        (["--save-every", "0"], "--save-every must be positive and finite"),
+        (["--set", "gravity=nan"], "gravity must be finite and >= 0"),
+        (["--set", "courant=0"], r"courant must be finite, in \(0, 1\]"),
+        (
+            ["--set", "gravity=0"],
+            r"gravity=0(\.0)? leaves no velocity scale.*give `dt`",
+        ),
+        (["--set", "spacing=1e-5"], r"asks for 4e\+08 particles.*raise `spacing`"),
+        (["--set", "spacing"], "--set expects NAME=VALUE"),
+        (["--set", "dim=2.5"], "expects a whole number"),
+    ],
+)
+def test_run_refuses_on_one_line(tmp_path, capsys, argv, message):
+    out = tmp_path / "r.h5"
+    err = _one_line_error(capsys, ["run", "hydrostatic", *argv, "--out", str(out)])
+    assert err.startswith("jaxmps run: error: ")
+    assert re.search(message, err), err
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_info_and_plot_of_bad_files(tmp_path, run_file, capsys):
+    err = _one_line_error(capsys, ["info", str(tmp_path / "missing.h5")])
+    assert err.startswith("jaxmps info: error: ") and "missing.h5" in err
+    text = tmp_path / "notanh5.txt"
+    text.write_text("hello")
+    err = _one_line_error(capsys, ["info", str(text)])
+    assert "notanh5.txt" in err and "not HDF5" in err
+    corrupt = tmp_path / "corrupt.h5"
+    corrupt.write_bytes(run_file.read_bytes()[:3000])
+    err = _one_line_error(capsys, ["plot", str(corrupt)])
+    assert err.startswith("jaxmps plot: error: ") and "corrupt.h5" in err
+    err = _one_line_error(capsys, ["plot", str(run_file), "--time", "5"])
+    assert "--time 5.0 lies outside the run's frames, t = 0 ..." in err
+    png = tmp_path / "folder.png"
+    png.mkdir()
+    err = _one_line_error(capsys, ["plot", str(run_file), "--out", str(png)])
+    assert "is a directory" in err
+
+
+def test_a_platform_jax_cannot_start_is_one_line(tmp_path):
+    """JAX_PLATFORMS naming a platform the machine lacks (here a made-up one; cuda
+    on a machine without a GPU fails the same way)."""
+    import os
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    env = {
+        **os.environ,
+        "PYTHONPATH": str(Path(__file__).resolve().parents[1]),
+        "JAX_PLATFORMS": "no_such_platform",
+    }
+    out = tmp_path / "r.h5"
+    command = [sys.executable, "-m", "jaxmps.cli", "run", "hydrostatic"]
+    done = subprocess.run(
+        [*command, "--out", str(out)],
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert done.returncode == 2, done.stderr
+    assert done.stderr.startswith("jaxmps run: error: JAX cannot start its backend")
+    assert "JAX_PLATFORMS=no_such_platform" in done.stderr
+    assert "Traceback" not in done.stderr and not out.exists()
+
+
+def test_an_internal_error_is_one_line_unless_debug(monkeypatch, capsys):
+    def broken():
+        raise KeyError("a bug")
+
+    monkeypatch.setattr(jaxmps.scenes, "available", broken)
+    err = _one_line_error(capsys, ["scenes"], code=1)
+    assert err.startswith("jaxmps scenes: internal error, please report it")
+    assert "--debug" in err and "KeyError" in err
+    with pytest.raises(KeyError, match="a bug"):
+        main(["scenes", "--debug"])
+    with pytest.raises(KeyError, match="a bug"):
+        main(["--debug", "scenes"])
+
+
+def test_info_of_a_run_file_missing_a_dataset(tmp_path, run_file, capsys):
+    import shutil
+
+    import h5py
+
+    damaged = tmp_path / "damaged.h5"
+    shutil.copy(run_file, damaged)
+    with h5py.File(damaged, "r+") as f:
+        del f["particles/kind"]
+    err = _one_line_error(capsys, ["info", str(damaged)])
+    assert err.startswith("jaxmps info: error: ") and "damaged run file" in err

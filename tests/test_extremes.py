@@ -133,10 +133,10 @@ def test_failed_run_keeps_frames_and_last_good_state_and_restarts(tmp_path):
     rest = jaxmps.run(
         taller, t_end=0.3, save_every=save, out=path, restart=True, chunk_saves=20
     )
-    # To t_end in whole saves of 5 steps: 20 + 5 ceil((74 - 20) / 5) = 75.
-    assert round(0.3 / dt) == 74 and int(rest.state.step) == 75
+    # To the step nearest t_end: ten saves of 5 steps and a last one of 4.
+    assert round(0.3 / dt) == 74 and int(rest.state.step) == 74
     steps = io.read_run(path).frames["step"]
-    assert np.all(np.diff(steps) > 0) and steps[5] == 25
+    assert np.all(np.diff(steps) > 0) and steps[5] == 25 and steps[-1] == 74
 
 
 def test_cli_restart_with_a_changed_time_step(tmp_path, capsys):
@@ -158,11 +158,13 @@ def test_cli_restart_with_a_changed_time_step(tmp_path, capsys):
         == 0
     )
     data = io.read_run(path)
-    # The run ends at the first whole save at or after t_end (saves of 5 steps of
-    # the new dt after the restart, 2 of the old one before).
+    # Each run ends at the step nearest its t_end: 5 steps of the old dt (saves of
+    # 2, 2 and 1 step), then saves of 5 steps of the new dt.
+    steps = data.frames["step"]
+    np.testing.assert_array_equal(steps, [0, 2, 4, 5, 10, 15])
     first, last = data.frames["time"][3], float(data.state["time"])
-    assert 0.04 <= last < 0.05
-    assert last - first == pytest.approx(0.002 * (data.frames["step"][-1] - 6))
+    assert abs(last - 0.04) <= 0.5 * 0.002
+    assert last - first == pytest.approx(0.002 * (steps[-1] - steps[3]))
     assert float(data.attrs["dt"]) == 0.002  # a later restart keeps the new dt
     assert "restart from" in capsys.readouterr().out
 

@@ -80,7 +80,12 @@ def _buoyancy(lift: float, pressure: str) -> float:
     _, pairs = jaxmps._step._neighbours(scene, state.position, state.active)
     coupling = jaxmps._step._coupling(scene, params, state)
     load = jaxmps.fluid.pressure_force(
-        scene.gradient, scene.discretisation, pairs, p, state.kind, state.active,
+        scene.gradient,
+        scene.discretisation,
+        pairs,
+        p,
+        state.kind,
+        state.active,
         coupling,
     )
     on_body = np.asarray(state.rigid.body) >= 0

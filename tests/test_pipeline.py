@@ -172,7 +172,9 @@ def test_coupling_merges_the_models_slot_by_slot():
     density[free] = 3000.0
     np.testing.assert_allclose(coupling.density, density, rtol=0, atol=0)
     # block_impact's rigid bodies take the pair form, the held body the fluid's.
-    np.testing.assert_array_equal(coupling.as_fluid, np.isin(np.arange(len(owner)), free))
+    np.testing.assert_array_equal(
+        coupling.as_fluid, np.isin(np.arange(len(owner)), free)
+    )
     # Both models advance in one step: the held particles stay put.
     new, _ = jaxmps.step(scene, params, state)
     np.testing.assert_array_equal(new.position[free], state.position[free])

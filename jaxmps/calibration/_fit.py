@@ -3,6 +3,7 @@
 import abc
 import json
 import time
+import warnings
 from pathlib import Path
 from typing import Any, Literal
 
@@ -11,6 +12,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from .._checks import check_compatible, check_values
+from .._result import Result, result_code, result_from_code
 from .._simulate import simulate
 from ..scenes import Case, observe_probes
 from ._fields import get_field, set_field
@@ -36,6 +39,13 @@ class Curve(eqx.Module):
             raise ValueError("Curve.times and Curve.values must be equal-length 1-D.")
         if np.any(np.diff(self.times) <= 0):
             raise ValueError("Curve.times must be strictly increasing.")
+        for name in ("times", "values"):
+            value = getattr(self, name)
+            if value.size == 0 or not np.all(np.isfinite(value.astype(float))):
+                raise ValueError(
+                    f"Curve.{name} must be finite numbers, at least one; got "
+                    f"{value.tolist()[:5]}{'...' if value.size > 5 else ''}."
+                )
 
     def mask(self) -> np.ndarray:
         if self.window is None:
@@ -112,11 +122,17 @@ class CalibrationResult(eqx.Module):
 
     Attributes:
         fields: the fitted Params field names.
-        values: parameter values of the best (lowest-loss) iterate {field: float}.
+        values: parameter values of the best (lowest-loss) iterate {field: float}
+            among those whose rollout succeeded.
         best_loss: the loss there, and `best_iteration` (1-based).
         history: {"loss": [...], field: [...]} per iteration (values before the step).
         params: the Params of the best iterate.
         iterations: steps taken; `converged`: whether `tol` was reached.
+        status: "converged", "max_iterations", or "rollout_failed": the rollout of
+            iterate `iterations` failed (or its loss was not finite) and the fit
+            stopped there; `message` says why and at which values.
+        result: the `jaxmps.Result` code of the last rollout (0: successful).
+        message: "" unless the fit stopped on a failed rollout.
     """
 
     fields: tuple[str, ...]
@@ -128,6 +144,9 @@ class CalibrationResult(eqx.Module):
     iterations: int
     converged: bool
     wall_time: float
+    status: str = "max_iterations"
+    result: int = 0
+    message: str = ""
 
     def save(self, path) -> None:
         """Write values and history as JSON."""
@@ -142,6 +161,9 @@ class CalibrationResult(eqx.Module):
                     iterations=self.iterations,
                     converged=self.converged,
                     wall_time=self.wall_time,
+                    status=self.status,
+                    result=self.result,
+                    message=self.message,
                 ),
                 indent=1,
             )
@@ -213,10 +235,25 @@ def calibrate(
             scenes or long rollouts), at ~1.2-1.6x the gradient time.
 
     Returns:
-        A `CalibrationResult`.
+        A `CalibrationResult`. If the rollout of an iterate fails (a
+        `jaxmps.Result` other than successful, e.g. a particle left the domain, or
+        a loss that is not finite), the fit stops there with a warning: `status`
+        is "rollout_failed", `result` the rollout's code, `message` names the
+        iterate and its values, and `values` are the best of the iterates before.
+
+    Raises:
+        RuntimeError: if the rollout of the starting values fails (its
+            `jaxmps.Result` message).
+        ValueError: for an unknown probe or field, or starting values a single
+            run would refuse.
     """
     import optax
 
+    whole = isinstance(iterations, (int, np.integer)) and not isinstance(
+        iterations, bool
+    )
+    if not (whole and iterations >= 1):
+        raise ValueError(f"iterations must be at least 1, got {iterations!r}.")
     names = [p.name for p in case.probes]
     if probe not in names:
         raise ValueError(f"Unknown probe {probe!r}; the case has {names}.")
@@ -249,9 +286,13 @@ def calibrate(
             throw=False,
             checkpoint=checkpoint,
         )
-        return curve_loss(tr.saved["time"], tr.saved[probe], curve)
+        loss = curve_loss(tr.saved["time"], tr.saved[probe], curve)
+        return loss, result_code(tr.result)
 
-    value_and_grad = eqx.filter_jit(jax.value_and_grad(loss_fn))
+    value_and_grad = eqx.filter_jit(jax.value_and_grad(loss_fn, has_aux=True))
+    # The starting point passes the checks of a single run.
+    check_values(params, "calibrate, starting values: ")
+    check_compatible(case.scene, params, case.state)
     u = {name: t.inverse(get_field(params, name)) for name, t in transforms.items()}
     state = optimiser.init(u)
     history = {"loss": [], **{name: [] for name in transforms}}
@@ -262,30 +303,54 @@ def calibrate(
         bar = tqdm(total=iterations, desc="calibrate", leave=False, delay=2.0)
     start = time.perf_counter()
     converged = False
-    it = 0
+    it, code, message = 0, 0, ""
     best = (np.inf, u, 0)
     for it in range(1, iterations + 1):
-        loss, grad = value_and_grad(u)
-        history["loss"].append(float(loss))
-        if float(loss) < best[0]:
-            best = (float(loss), u, it)
+        (loss, code), grad = value_and_grad(u)
+        loss, code = float(loss), int(code)
+        history["loss"].append(loss)
         for name, t in transforms.items():
             history[name].append(_plain(t.forward(u[name])))
         if bar is not None:
             bar.update(1)
-            bar.set_postfix(loss=f"{float(loss):.3g}")
-        if float(loss) <= tol:
+            bar.set_postfix(loss=f"{loss:.3g}")
+        if code != 0 or not np.isfinite(loss):
+            at = ", ".join(f"{name}={history[name][-1]}" for name in transforms)
+            why = (
+                Result[result_from_code(code)]
+                if code
+                else f"its loss is {loss}, not finite"
+            )
+            message = f"The rollout of iterate {it} ({at}) failed: {why}"
+            if it == 1:
+                if bar is not None:
+                    bar.close()
+                raise RuntimeError(
+                    f"calibrate: {message} Nothing to fit from: change the "
+                    "starting values or the settings the message names."
+                )
+            warnings.warn(
+                f"calibrate: {message} The fit stops; it returns the best of "
+                f"iterates 1-{it - 1} (status 'rollout_failed').",
+                stacklevel=2,
+            )
+            break
+        if loss < best[0]:
+            best = (loss, u, it)
+        if loss <= tol:
             converged = True
             break
-        if not np.isfinite(float(loss)):
-            raise RuntimeError(
-                f"calibrate: the loss became {float(loss)} at iteration {it}; the "
-                "rollout probably failed. Check the starting values and `dt`."
-            )
         updates, state = optimiser.update(grad, state, u)
         u = optax.apply_updates(u, updates)
     if bar is not None:
         bar.close()
+    status = (
+        "rollout_failed"
+        if message
+        else "converged"
+        if converged
+        else ("max_iterations")
+    )
     # Adam's momentum overshoots near the optimum: return the best iterate seen.
     fitted = with_values(best[1])
     return CalibrationResult(
@@ -298,4 +363,7 @@ def calibrate(
         iterations=it,
         converged=converged,
         wall_time=time.perf_counter() - start,
+        status=status,
+        result=code,
+        message=message,
     )

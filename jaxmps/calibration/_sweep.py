@@ -10,8 +10,9 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Int, PyTree
 
+from .._checks import check_compatible, check_values
 from .._params import Params
-from .._result import result_code
+from .._result import Result, result_code, result_from_code
 from .._scene import Scene
 from .._simulate import simulate
 from .._state import State
@@ -38,15 +39,48 @@ class SweepResult(eqx.Module):
     wall_time: float
     first_call_time: float
 
+    def messages(self) -> list[str]:
+        """Per member, "successful" or the message of the `jaxmps.Result` that
+        ended its run."""
+        return [
+            "successful" if int(code) == 0 else Result[result_from_code(int(code))]
+            for code in np.asarray(self.result)
+        ]
+
+    def failed(self) -> dict[int, str]:
+        """{member index: message} of the members whose run failed."""
+        return {i: m for i, m in enumerate(self.messages()) if m != "successful"}
+
+
+def _host_values(name: str, value) -> np.ndarray:
+    """Swept values as a float array on the host (ValueError naming the field)."""
+    try:
+        array = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError, OverflowError):
+        raise ValueError(
+            f"Values of {name!r} must be numbers, got {value!r}."
+        ) from None
+    if array.ndim == 0 or array.shape[0] == 0:
+        raise ValueError(
+            f"Values of {name!r} need a leading batch axis of at least one member, "
+            f"got shape {array.shape}."
+        )
+    return array
+
 
 def batch_params(params: Params, values: dict[str, Any]) -> tuple[Params, Params, int]:
     """Params whose listed fields carry a leading batch axis, and the vmap axes."""
-    sizes = {len(np.atleast_1d(v)) for v in values.values()}
-    if len(sizes) != 1:
+    if not values:
+        raise ValueError("Nothing to sweep: `values` names no Params field.")
+    for name in values:
+        get_field(params, name)
+    host = {name: _host_values(name, value) for name, value in values.items()}
+    sizes = {name: len(value) for name, value in host.items()}
+    if len(set(sizes.values())) != 1:
         raise ValueError(f"All swept fields need the same length, got {sizes}.")
     axes = jax.tree.map(lambda _: None, params)
     batched = params
-    for name, value in values.items():
+    for name, value in host.items():
         base = get_field(params, name)
         arr = jnp.asarray(value, dtype=base.dtype)
         if arr.ndim != base.ndim + 1:
@@ -57,7 +91,30 @@ def batch_params(params: Params, values: dict[str, Any]) -> tuple[Params, Params
         axes = eqx.tree_at(
             lambda p, n=name: get_field(p, n), axes, 0, is_leaf=lambda x: x is None
         )
-    return batched, axes, sizes.pop()
+    return batched, axes, len(next(iter(host.values())))
+
+
+def checked_batch(case, values: dict[str, Any]):
+    """`batch_params` of the case's Params, after checking on the host that every
+    member passes the checks of a single run (ValueError naming the member)."""
+    batched, axes, b = batch_params(case.params, values)
+    # Every member passes the checks of a single run, on the host, before tracing.
+    for i in range(b):
+        member = jax.tree.map(
+            lambda x, a: x if a is None else x[i],
+            batched,
+            axes,
+            is_leaf=lambda x: x is None,
+        )
+        where = ", ".join(
+            f"{name}={np.asarray(get_field(member, name)).tolist()}" for name in values
+        )
+        try:
+            check_values(member)
+            check_compatible(case.scene, member, case.state)
+        except ValueError as e:
+            raise ValueError(f"Sweep member {i} ({where}): {e}") from None
+    return batched, axes, b
 
 
 @eqx.filter_jit
@@ -115,20 +172,20 @@ def sweep(
             the program compiles once.
 
     Returns:
-        A `SweepResult`. Members fail independently: check `result`.
+        A `SweepResult`. Members fail independently: check `result`, or
+        `SweepResult.failed()` for their messages.
+
+    Raises:
+        ValueError: for values that are not numbers, empty, of unequal lengths, or
+            of a member that a single run would refuse (non-finite, a negative
+            density, a step beyond a stability limit...), naming the member.
     """
     observe = observe_probes(case.probes) if observe is None else observe
-    batched, axes, b = batch_params(case.params, values)
-    # Concrete checks (e.g. an explicit time step beyond its limit) per member.
-    for i in range(b):
-        member = jax.tree.map(
-            lambda x, a: x if a is None else x[i],
-            batched,
-            axes,
-            is_leaf=lambda x: x is None,
-        )
-        case.scene.solver.check_params(case.scene.discretisation, member)
-    chunk = b if chunk is None else max(1, min(int(chunk), b))
+    batched, axes, b = checked_batch(case, values)
+    whole = isinstance(chunk, (int, np.integer)) and not isinstance(chunk, bool)
+    if chunk is not None and not (whole and chunk >= 1):
+        raise ValueError(f"chunk must be a whole number >= 1, got {chunk!r}.")
+    chunk = b if chunk is None else min(int(chunk), b)
     n_chunks = -(-b // chunk)
 
     def batched_run(chunk_params):

@@ -1,8 +1,52 @@
 """Host-side particle geometry on regular lattices (NumPy; never jitted)."""
 
+import math
+import os
+
 import numpy as np
 
 from .._types import Kind
+
+# Choice: the device memory a run needs per particle slot, estimated from the
+# arrays of one step (state, neighbour lists and pair arrays of about 2 x the
+# lattice neighbour count, the pressure solve's vectors): 2 KiB in 2-D, 8 KiB in
+# 3-D. An estimate for refusing absurd sizes early, not a measurement.
+BYTES_PER_PARTICLE = {2: 2 << 10, 3: 8 << 10}
+
+
+def particle_limit(dim: int) -> int:
+    """The most lattice points one `block` may hold: `JAXMPS_MAX_PARTICLES` if set,
+    else as many as the machine's physical memory holds at `BYTES_PER_PARTICLE`."""
+    setting = os.environ.get("JAXMPS_MAX_PARTICLES")
+    if setting:
+        try:
+            return int(float(setting))
+        except ValueError:
+            raise ValueError(
+                f"JAXMPS_MAX_PARTICLES={setting!r} is not a number of particles."
+            ) from None
+    try:
+        memory = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+    except (ValueError, OSError, AttributeError):
+        memory = 64 << 30
+    return memory // BYTES_PER_PARTICLE.get(dim, BYTES_PER_PARTICLE[3])
+
+
+def _check_size(counts: np.ndarray, spacing: float) -> None:
+    """Refuse a lattice too large to run, before allocating it (ValueError naming
+    the count, the memory and `spacing`)."""
+    dim = len(counts)
+    total = math.prod(int(c) for c in counts)
+    limit = particle_limit(dim)
+    if total > limit:
+        per = BYTES_PER_PARTICLE.get(dim, BYTES_PER_PARTICLE[3])
+        raise ValueError(
+            f"spacing={spacing:g} m asks for {total:.3g} particles in one block "
+            f"(about {total * per / 2**30:.3g} GiB to run), above the limit of "
+            f"{limit:.3g} (the machine's memory, or JAXMPS_MAX_PARTICLES); raise "
+            f"`spacing` (x{(total / limit) ** (1 / dim):.2g} at least) or shrink "
+            "the scene's lengths."
+        )
 
 
 def block(lower, upper, spacing: float) -> np.ndarray:
@@ -13,6 +57,12 @@ def block(lower, upper, spacing: float) -> np.ndarray:
     lower = np.asarray(lower, dtype=np.float64)
     upper = np.asarray(upper, dtype=np.float64)
     extent = (upper - lower) / spacing
+    if not np.all(np.isfinite(extent)):
+        raise ValueError(
+            f"Box {lower.tolist()}..{upper.tolist()} at spacing {spacing} is not "
+            "finite; change the size or `spacing`."
+        )
+    _check_size(np.maximum(np.rint(extent), 0), spacing)
     counts = np.rint(extent).astype(int)
     if np.any(np.abs(extent - counts) > 1e-6) or np.any(counts < 1):
         raise ValueError(

@@ -147,6 +147,8 @@ class RunWriter:
         case: the `jaxmps.scenes.Case` being run (its config, particle kinds, dt).
         append: open an existing run file and append to it (restart) instead of
             creating a new one.
+        sidecar: keep the XDMF sidecar in step (off while the file is written
+            under a temporary name; `move_to` switches it on).
 
     Example:
         ```python
@@ -156,9 +158,17 @@ class RunWriter:
         ```
     """
 
-    def __init__(self, path: str | os.PathLike, case: Any, append: bool = False):
+    def __init__(
+        self,
+        path: str | os.PathLike,
+        case: Any,
+        append: bool = False,
+        *,
+        sidecar: bool = True,
+    ):
         self.path = Path(path)
         self.xdmf_path = self.path.with_suffix(".xdmf")
+        self.sidecar = sidecar
         self.dt = float(np.asarray(case.params.dt))
         self.body_fields = tuple(model.name for model in case.scene.body_models)
         if append:
@@ -291,8 +301,20 @@ class RunWriter:
         self.write_xdmf()
 
     def write_xdmf(self) -> None:
-        """(Re)write the XDMF sidecar describing every frame in the file."""
-        write_xdmf(self.file, self.xdmf_path, self.path.name)
+        """(Re)write the XDMF sidecar describing every frame in the file (nothing
+        while `sidecar` is off)."""
+        if self.sidecar:
+            write_xdmf(self.file, self.xdmf_path, self.path.name)
+
+    def move_to(self, path: str | os.PathLike) -> None:
+        """Move the open run file to `path` (`os.replace`: one step within a file
+        system, replacing any file there) and keep writing it there, with its
+        sidecar."""
+        path = Path(path)
+        self.file.flush()
+        os.replace(self.path, path)
+        self.path, self.xdmf_path, self.sidecar = path, path.with_suffix(".xdmf"), True
+        self.write_xdmf()
 
     def close(self) -> None:
         """Flush and close the file (idempotent)."""

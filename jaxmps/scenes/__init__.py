@@ -20,10 +20,10 @@ from ._hydrostatic import hydrostatic_pressure as hydrostatic_pressure
 from ._probes import AbstractProbe as AbstractProbe
 from ._probes import BodyValue as BodyValue
 from ._probes import FluidPressureNear as FluidPressureNear
-from ._probes import PressureLevel as PressureLevel
 from ._probes import FrontPosition as FrontPosition
 from ._probes import ModeAmplitude as ModeAmplitude
 from ._probes import PressureAt as PressureAt
+from ._probes import PressureLevel as PressureLevel
 from ._probes import RunUp as RunUp
 from ._probes import StripLevel as StripLevel
 from ._probes import WallForce as WallForce

@@ -313,7 +313,12 @@ def block_impact(**overrides) -> Case:
     a = whole(c["block_size"], l0)
     gap = whole(c["gap"], l0) if c["gap"] > 0 else 0.0
     if c["dt"] is None:
-        c = {**c, "dt": 0.005 * l0 / max(abs(c["velocity"]), 1e-9)}
+        if not c["velocity"] != 0:
+            raise ValueError(
+                "velocity=0 leaves no velocity scale to derive the time step from; "
+                "give `dt` (seconds) as well, or a non-zero `velocity`."
+            )
+        c = {**c, "dt": 0.005 * l0 / abs(c["velocity"])}
     side = whole(0.5 * a, l0)
     length = a + 2 * side
     across = [length] if dim == 3 else []

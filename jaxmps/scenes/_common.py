@@ -80,6 +80,17 @@ def resolve(name: str, specific: dict[str, Any], overrides: dict[str, Any]) -> d
         )
     for key, value in overrides.items():
         _check_type(name, key, defaults[key], value)
+        _check_range(name, key, value)
+    # Numbers as Python numbers: whole for counts, float for the rest (a value
+    # given as `--set gravity=0` or numpy.float32(9.81) is the float 0.0, 9.81).
+    overrides = {
+        key: value
+        if value is None or isinstance(value, (bool, np.bool_, str))
+        else int(value)
+        if key in _WHOLE
+        else float(value)
+        for key, value in overrides.items()
+    }
     config = {**defaults, **overrides}
     if config["solver"] not in SOLVERS:
         raise ValueError(
@@ -106,8 +117,142 @@ def resolve(name: str, specific: dict[str, Any], overrides: dict[str, Any]) -> d
     return config
 
 
+class Range:
+    """The values a numeric setting accepts: finite, between `low` and `high`
+    (either bound open or closed; None for no bound)."""
+
+    def __init__(self, low=None, high=None, *, open_low=False, open_high=False):
+        self.low, self.high = low, high
+        self.open_low, self.open_high = open_low, open_high
+
+    def __contains__(self, value: float) -> bool:
+        if not math.isfinite(value):
+            return False
+        if self.low is not None and not (
+            value > self.low if self.open_low else value >= self.low
+        ):
+            return False
+        return self.high is None or (
+            value < self.high if self.open_high else value <= self.high
+        )
+
+    def __str__(self) -> str:
+        def shown(bound):
+            return str(int(bound)) if float(bound).is_integer() else f"{bound:g}"
+
+        bounded = self.low is not None and self.high is not None
+        if bounded and not (self.low == 0 and self.high >= 1000):
+            left = "(" if self.open_low else "["
+            right = ")" if self.open_high else "]"
+            return f"finite, in {left}{shown(self.low)}, {shown(self.high)}{right}"
+        if self.low == 0:
+            text = "positive and finite" if self.open_low else "finite and >= 0"
+        elif self.low is not None:
+            text = f"finite and {'>' if self.open_low else '>='} {shown(self.low)}"
+        else:
+            text = "finite"
+        if self.high is not None:
+            text += f", {'below' if self.open_high else 'at most'} {shown(self.high)}"
+        return text
+
+
+_FINITE = Range()
+_POSITIVE = Range(0, open_low=True)
+_NON_NEGATIVE = Range(0)
+# Lengths [m] up to 10 km: beyond, products like spacing^2 leave float range long
+# before any scene makes sense.
+_LENGTH = Range(0, 1e4, open_low=True)
+_OFFSET = Range(0, 1e4)
+_COUNT = Range(1, 2**31 - 1)
+_ANGLE = Range(-90, 90, open_low=True, open_high=True)
+
+# The accepted values of every numeric scene setting (a number not listed here
+# must be finite). None, where a setting's default is None, means "derived" and is
+# not checked here.
+RULES = {
+    # common settings
+    "dt": _POSITIVE,
+    "viscosity": _NON_NEGATIVE,
+    "density": _POSITIVE,
+    "gravity": _NON_NEGATIVE,
+    "beta": Range(0, 1, open_low=True),
+    "sound_speed": _POSITIVE,
+    "rtol": Range(0, 1, open_low=True, open_high=True),
+    "max_iterations": _COUNT,
+    "max_neighbours": _COUNT,
+    "candidate_capacity": _COUNT,
+    "courant": Range(0, 1, open_low=True),
+    "domain_margin": _OFFSET,
+    # lengths [m]
+    "spacing": _LENGTH,
+    "width": _LENGTH,
+    "depth": _LENGTH,
+    "tank_length": _LENGTH,
+    "tank_height": _LENGTH,
+    "tank_width": _LENGTH,
+    "column_width": _LENGTH,
+    "column_height": _LENGTH,
+    "box_width": _LENGTH,
+    "box_height": _LENGTH,
+    "block_size": _LENGTH,
+    "floor_length": _LENGTH,
+    "bed_length": _LENGTH,
+    "bottom_width": _LENGTH,
+    "inflow_depth": _LENGTH,
+    "box_x": _OFFSET,
+    "gauge_x": Range(-1e4, 1e4),
+    "gap": _OFFSET,
+    "weir_height": _OFFSET,
+    "initial_draft": _OFFSET,
+    "amplitude": _OFFSET,
+    "stroke": _OFFSET,
+    # angles [degrees] and slopes
+    "angle": _ANGLE,
+    "heel": _ANGLE,
+    "slope": _NON_NEGATIVE,
+    "beach_slope": _POSITIVE,
+    # times [s], rates and counts
+    "t_end": _POSITIVE,
+    "settle": _NON_NEGATIVE,
+    "frequency": _NON_NEGATIVE,
+    "wave_period": _POSITIVE,
+    "ramp_periods": _NON_NEGATIVE,
+    "discharge": _POSITIVE,
+    "velocity": _FINITE,  # signed: towards the floor when positive
+    "pool": Range(0, 2**31 - 1),
+    # ratios and coefficients
+    "density_ratio": _POSITIVE,
+    "mu_static": _NON_NEGATIVE,
+    "mu_kinetic": _NON_NEGATIVE,
+}
+
+
+def _check_range(scene: str, key: str, value: Any) -> None:
+    """A numeric override lies in the range `RULES` gives for its name (ValueError
+    naming the setting and the range)."""
+    if value is None or isinstance(value, (bool, np.bool_, str)):
+        return
+    rule = RULES.get(key, _FINITE)
+    try:
+        inside = float(value) in rule
+    except OverflowError:
+        inside = False
+    if not inside:
+        raise ValueError(
+            f"{key} must be {rule}, got {value!r} (a setting of scene '{scene}')."
+        )
+
+
 # Parameters counted in whole numbers (None: derived).
 _WHOLE = ("dim", "max_iterations", "max_neighbours", "candidate_capacity", "pool")
+
+
+def _whole(value) -> bool:
+    """Whether a number is a whole number (False for nan, inf and beyond floats)."""
+    try:
+        return math.isfinite(float(value)) and float(value) == int(value)
+    except OverflowError:
+        return False
 
 
 def _check_type(scene: str, key: str, default: Any, value: Any) -> None:
@@ -121,9 +266,7 @@ def _check_type(scene: str, key: str, default: Any, value: Any) -> None:
     elif isinstance(default, str):
         ok, want = isinstance(value, str), "a word"
     elif key in _WHOLE:
-        ok = (number and float(value) == int(value)) or (
-            default is None and value is None
-        )
+        ok = (number and _whole(value)) or (default is None and value is None)
         want = "a whole number" + (" or None" if default is None else "")
     else:
         ok = number or (default is None and value is None)
@@ -144,6 +287,11 @@ def default_dt(config: dict, velocity_scale: float) -> float:
     in seed 002)."""
     if config["dt"] is not None:
         return float(config["dt"])
+    if not velocity_scale > 0:
+        raise ValueError(
+            f"gravity={config['gravity']!r} leaves no velocity scale to derive the "
+            "time step from; give `dt` (seconds) as well, or a positive `gravity`."
+        )
     dt = config["courant"] * config["spacing"] / velocity_scale
     if config["solver"] == "explicit":
         dt = min(dt, 2 * config["courant"] * config["spacing"] / config["sound_speed"])
@@ -246,4 +394,5 @@ def whole(value: float, spacing: float) -> float:
 
 
 def velocity_scale(height: float, gravity: float) -> float:
-    return math.sqrt(2.0 * max(gravity, 1e-9) * height)
+    """sqrt(2 g h), the free-fall speed over `height` (0 without gravity)."""
+    return math.sqrt(2.0 * max(gravity, 0.0) * height)
