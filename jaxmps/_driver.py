@@ -450,16 +450,7 @@ def run(
     save_every = _seconds("save_every", save_every)
     out = None if out is None else Path(out)
     restart_from, append = _restart_source(out, restart, restart_from)
-    if out is not None:
-        check_output(out, overwrite=overwrite, append=append)
-    state = case.state
-    if restart_from is not None:
-        if not restart_from.exists():
-            raise ValueError(f"Restart file '{restart_from}' does not exist.")
-        state = load_state(restart_from, case)
-        _check_precision(restart_from, case)
-    # Settings the case cannot run with are refused before any file is touched.
-    check_compatible(case.scene, case.params, state)
+    state = _starting_state(case, out, restart_from, append, overwrite)
     t_now = None if restart_from is None else float(np.asarray(state.time))
     dt = float(np.asarray(case.params.dt))
     plan = _plan(dt, t_end, save_every, t_now, chunk_saves)
@@ -477,12 +468,7 @@ def run(
         except OSError as e:
             if writer is None or writer.path != out:
                 raise
-            raise OSError(
-                e.errno,
-                f"Writing the run file '{out}' failed ({e.strerror or e}); it keeps "
-                "every frame written before, and in /state the last one's state, "
-                "to restart from.",
-            ) from e
+            raise _write_failure(e, out) from e
         finally:
             if writer is not None:
                 writer.close()
@@ -494,6 +480,38 @@ def run(
         path=out,
         n_steps=int(np.asarray(state.step)) - done,
         wall_time=_time.perf_counter() - started,
+    )
+
+
+def _starting_state(
+    case: Case,
+    out: Path | None,
+    restart_from: Path | None,
+    append: bool,
+    overwrite: bool,
+) -> State:
+    """The state a run starts from (the case's, or the restart file's), after every
+    check that must pass before a file is touched: the output path, the restart
+    file's precision, and the settings the case cannot run with."""
+    if out is not None:
+        check_output(out, overwrite=overwrite, append=append)
+    state = case.state
+    if restart_from is not None:
+        if not restart_from.exists():
+            raise ValueError(f"Restart file '{restart_from}' does not exist.")
+        state = load_state(restart_from, case)
+        _check_precision(restart_from, case)
+    check_compatible(case.scene, case.params, state)
+    return state
+
+
+def _write_failure(error: OSError, out: Path) -> OSError:
+    """The error a failed write of the run file ends the run with."""
+    return OSError(
+        error.errno,
+        f"Writing the run file '{out}' failed ({error.strerror or error}); it keeps "
+        "every frame written before, and in /state the last one's state, to "
+        "restart from.",
     )
 
 

@@ -249,22 +249,7 @@ def calibrate(
     """
     import optax
 
-    whole = isinstance(iterations, (int, np.integer)) and not isinstance(
-        iterations, bool
-    )
-    if not (whole and iterations >= 1):
-        raise ValueError(f"iterations must be at least 1, got {iterations!r}.")
-    names = [p.name for p in case.probes]
-    if probe not in names:
-        raise ValueError(f"Unknown probe {probe!r}; the case has {names}.")
-    transforms = {k: (Identity() if t is None else t) for k, t in fields.items()}
-    params = case.params
-    for name, value in (initial or {}).items():
-        base = get_field(params, name)
-        value = jnp.broadcast_to(jnp.asarray(value, base.dtype), base.shape)
-        params = set_field(params, name, value)
-    for name in transforms:
-        get_field(params, name)
+    transforms, params = _starting_point(case, fields, probe, iterations, initial)
     observe = observe_probes(case.probes)
     optimiser = optax.adam(0.05) if optimiser is None else optimiser
 
@@ -290,67 +275,12 @@ def calibrate(
         return loss, result_code(tr.result)
 
     value_and_grad = eqx.filter_jit(jax.value_and_grad(loss_fn, has_aux=True))
-    # The starting point passes the checks of a single run.
-    check_values(params, "calibrate, starting values: ")
-    check_compatible(case.scene, params, case.state)
     u = {name: t.inverse(get_field(params, name)) for name, t in transforms.items()}
-    state = optimiser.init(u)
-    history = {"loss": [], **{name: [] for name in transforms}}
-    bar = None
-    if progress:
-        from tqdm.auto import tqdm
-
-        bar = tqdm(total=iterations, desc="calibrate", leave=False, delay=2.0)
     start = time.perf_counter()
-    converged = False
-    it, code, message = 0, 0, ""
-    best = (np.inf, u, 0)
-    for it in range(1, iterations + 1):
-        (loss, code), grad = value_and_grad(u)
-        loss, code = float(loss), int(code)
-        history["loss"].append(loss)
-        for name, t in transforms.items():
-            history[name].append(_plain(t.forward(u[name])))
-        if bar is not None:
-            bar.update(1)
-            bar.set_postfix(loss=f"{loss:.3g}")
-        if code != 0 or not np.isfinite(loss):
-            at = ", ".join(f"{name}={history[name][-1]}" for name in transforms)
-            why = (
-                Result[result_from_code(code)]
-                if code
-                else f"its loss is {loss}, not finite"
-            )
-            message = f"The rollout of iterate {it} ({at}) failed: {why}"
-            if it == 1:
-                if bar is not None:
-                    bar.close()
-                raise RuntimeError(
-                    f"calibrate: {message} Nothing to fit from: change the "
-                    "starting values or the settings the message names."
-                )
-            warnings.warn(
-                f"calibrate: {message} The fit stops; it returns the best of "
-                f"iterates 1-{it - 1} (status 'rollout_failed').",
-                stacklevel=2,
-            )
-            break
-        if loss < best[0]:
-            best = (loss, u, it)
-        if loss <= tol:
-            converged = True
-            break
-        updates, state = optimiser.update(grad, state, u)
-        u = optax.apply_updates(u, updates)
-    if bar is not None:
-        bar.close()
-    status = (
-        "rollout_failed"
-        if message
-        else "converged"
-        if converged
-        else ("max_iterations")
+    best, history, it, code, message, converged = _optimise(
+        value_and_grad, optimiser, u, transforms, iterations, tol, progress
     )
+    status = "rollout_failed" if message else "converged" if converged else ""
     # Adam's momentum overshoots near the optimum: return the best iterate seen.
     fitted = with_values(best[1])
     return CalibrationResult(
@@ -363,7 +293,92 @@ def calibrate(
         iterations=it,
         converged=converged,
         wall_time=time.perf_counter() - start,
-        status=status,
+        status=status or "max_iterations",
         result=code,
         message=message,
     )
+
+
+def _starting_point(case: Case, fields, probe: str, iterations, initial):
+    """The transforms of the fitted fields and the starting Params, after checking
+    the arguments (ValueError naming the one to change)."""
+    whole = isinstance(iterations, (int, np.integer)) and not isinstance(
+        iterations, bool
+    )
+    if not (whole and iterations >= 1):
+        raise ValueError(f"iterations must be at least 1, got {iterations!r}.")
+    names = [p.name for p in case.probes]
+    if probe not in names:
+        raise ValueError(f"Unknown probe {probe!r}; the case has {names}.")
+    transforms = {k: (Identity() if t is None else t) for k, t in fields.items()}
+    params = case.params
+    for name, value in (initial or {}).items():
+        base = get_field(params, name)
+        value = jnp.broadcast_to(jnp.asarray(value, base.dtype), base.shape)
+        params = set_field(params, name, value)
+    for name in transforms:
+        get_field(params, name)
+    # The starting point passes the checks of a single run.
+    check_values(params, "calibrate, starting values: ")
+    check_compatible(case.scene, params, case.state)
+    return transforms, params
+
+
+def _failed_iterate(it: int, code: int, loss: float, history, transforms) -> str:
+    """The message of a failed rollout at iterate `it`; raised (RuntimeError) for
+    the first iterate, which leaves nothing to fit from, warned otherwise."""
+    at = ", ".join(f"{name}={history[name][-1]}" for name in transforms)
+    why = Result[result_from_code(code)] if code else f"its loss is {loss}, not finite"
+    message = f"The rollout of iterate {it} ({at}) failed: {why}"
+    if it == 1:
+        raise RuntimeError(
+            f"calibrate: {message} Nothing to fit from: change the "
+            "starting values or the settings the message names."
+        )
+    warnings.warn(
+        f"calibrate: {message} The fit stops; it returns the best of "
+        f"iterates 1-{it - 1} (status 'rollout_failed').",
+        stacklevel=4,
+    )
+    return message
+
+
+def _optimise(value_and_grad, optimiser, u, transforms, iterations, tol, progress):
+    """The optimiser loop: (best (loss, u, iterate), history, iterations run, the
+    last rollout's result code, the failure message or "", converged)."""
+    import optax
+
+    state = optimiser.init(u)
+    history = {"loss": [], **{name: [] for name in transforms}}
+    bar = None
+    if progress:
+        from tqdm.auto import tqdm
+
+        bar = tqdm(total=iterations, desc="calibrate", leave=False, delay=2.0)
+    converged = False
+    it, code, message = 0, 0, ""
+    best = (np.inf, u, 0)
+    try:
+        for it in range(1, iterations + 1):
+            (loss, code), grad = value_and_grad(u)
+            loss, code = float(loss), int(code)
+            history["loss"].append(loss)
+            for name, t in transforms.items():
+                history[name].append(_plain(t.forward(u[name])))
+            if bar is not None:
+                bar.update(1)
+                bar.set_postfix(loss=f"{loss:.3g}")
+            if code != 0 or not np.isfinite(loss):
+                message = _failed_iterate(it, code, loss, history, transforms)
+                break
+            if loss < best[0]:
+                best = (loss, u, it)
+            if loss <= tol:
+                converged = True
+                break
+            updates, state = optimiser.update(grad, state, u)
+            u = optax.apply_updates(u, updates)
+    finally:
+        if bar is not None:
+            bar.close()
+    return best, history, it, code, message, converged
