@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# The GPU benchmark run as one command (issue 8): step throughput, 2-D and 3-D
+# The GPU benchmark run as one command: step throughput, 2-D and 3-D
 # scaling up to the largest sizes that fit, and jaxmps' side of side_by_side, in
 # float32 and float64, results under benchmarks/results/ tagged with the machine
 # kind (h100, h200, or the first word of the GPU's name).
