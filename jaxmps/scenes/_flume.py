@@ -63,31 +63,15 @@ def flume(**overrides) -> Case:
     rows = int(round(h_in / l0))
 
     # Inflow boundary: a pressure layer at x = -l0/2 and dummy layers behind it.
-    ys = (np.arange(rows) + 0.5) * l0
-    inflow_pts = np.concatenate(
-        [np.stack([np.full(rows, -(k + 0.5) * l0), ys], -1) for k in range(layers)]
-    )
-    inflow_kind = np.where(np.arange(len(inflow_pts)) < rows, Kind.WALL, Kind.DUMMY)
+    inflow_pts, inflow_kind = _column(0, rows, layers, l0)
     # A fixed wall above the inflow column, so that a level raised by a tail weir
     # (or a jump) cannot spill back over the inflow boundary.
-    h_c = (float(c["discharge"]) ** 2 / c["gravity"]) ** (1 / 3)  # critical depth
-    # Level upstream of a weir ~ crest + 1.5 h_c (broad-crested weir); keep margin.
-    level = weir + 2 * max(h_c, h_in) if weir > 0 else h_in
-    margin = c["domain_margin"]
-    # Choice: room above the water for splash (a jet off a tail weir rises ~0.3 m).
-    top = max(h_in, weir) + (max(0.3 * length, 0.4) if margin is None else margin)
+    level, top = _heights(c, h_in, weir, length)
     # Choice: the wall rises to the top of the domain (a head-box wall), so that
     # splash thrown back upstream (off a weir or a jump) cannot leave the domain
     # over the inflow end; it falls back into the channel.
     above = int(round(max(top, level + 4 * l0) / l0)) - rows
-    ys_above = (rows + np.arange(above) + 0.5) * l0
-    upstream = np.concatenate(
-        [
-            np.stack([np.full(above, -(k + 0.5) * l0), ys_above], -1)
-            for k in range(layers)
-        ]
-    )
-    upstream_kind = np.where(np.arange(len(upstream)) < above, Kind.WALL, Kind.DUMMY)
+    upstream, upstream_kind = _column(rows, above, layers, l0)
     # Bed under the inflow (and the travel of its dummies) and the channel.
     bed_lower = [-(layers + 1) * l0, -layers * l0]
     # The bed runs on under the weir: a weir standing on the bed's end would leave
@@ -99,16 +83,9 @@ def flume(**overrides) -> Case:
     parts = [inflow_pts, upstream, bed]
     kinds = [inflow_kind, upstream_kind, bed_kind]
     if weir > 0:
-        w = geometry.block([length, 0.0], [length + layers * l0, weir], l0)
-        # Every face of the weir that water can touch (upstream, crest, downstream)
-        # is lined with pressure walls: dummies carry no pressure, so an exposed
-        # dummy face lets fluid through.
-        exposed = np.minimum.reduce(
-            [w[:, 0] - length, weir - w[:, 1], length + layers * l0 - w[:, 0]]
-        )
-        w_layer = np.rint(exposed / l0 - 0.5).astype(int)
+        w, w_kind = _weir(length, weir, layers, l0)
         parts.append(w)
-        kinds.append(np.where(w_layer == 0, Kind.WALL, Kind.DUMMY))
+        kinds.append(w_kind)
     fluid = (
         geometry.block([0.0, 0.0], [length, h_in], l0)
         if c["initial_fill"]
@@ -120,15 +97,7 @@ def flume(**overrides) -> Case:
     ).astype(np.int32)
     n_fluid = len(fluid)
 
-    if c["pool"] is None:
-        columns = math.ceil(u_in * float(c["t_end"]) / l0) + 2
-        # Enough for what enters over t_end on a dry bed, or for the bed filled up
-        # to 1.5 x the level a tail weir holds, or the inflow depth (the flow
-        # deepens as it develops).
-        stored = math.ceil(1.5 * level * length / l0**2) + 4 * rows - n_fluid
-        pool = max(rows * columns if not c["initial_fill"] else 0, stored, 4 * rows)
-    else:
-        pool = int(c["pool"])
+    pool = _pool(c, u_in, level, length, rows, n_fluid)
     capacity = len(position) + pool
     lower = np.array([-(layers + 3) * l0, -(layers + 2) * l0 - 0.2 * length])
     upper = np.array([length + (layers + 3) * l0, top])
@@ -168,15 +137,54 @@ def flume(**overrides) -> Case:
         "weir_height": weir,
         "pool": pool,
     }
-    return Case(
-        name="flume",
-        scene=scene,
-        params=params,
-        state=state,
-        probes=probes,
-        t_end=float(c["t_end"]),
-        config=config,
+    return Case("flume", scene, params, state, probes, float(c["t_end"]), config)
+
+
+def _heights(c: dict, h_in: float, weir: float, length: float):
+    """The highest water level expected (upstream of a weir ~ crest + 1.5 h_c, a
+    broad-crested weir, with margin) and the domain's top."""
+    h_c = (float(c["discharge"]) ** 2 / c["gravity"]) ** (1 / 3)  # critical depth
+    level = weir + 2 * max(h_c, h_in) if weir > 0 else h_in
+    margin = c["domain_margin"]
+    # Choice: room above the water for splash (a jet off a tail weir rises ~0.3 m).
+    top = max(h_in, weir) + (max(0.3 * length, 0.4) if margin is None else margin)
+    return level, top
+
+
+def _column(first: int, count: int, layers: int, l0: float):
+    """`layers` vertical columns of `count` points upstream of x = 0 (at x = -l0/2,
+    -3 l0/2, ...), from row `first` up: the nearest column pressure walls, the
+    others dummies."""
+    ys = (first + np.arange(count) + 0.5) * l0
+    points = np.concatenate(
+        [np.stack([np.full(count, -(k + 0.5) * l0), ys], -1) for k in range(layers)]
     )
+    kind = np.where(np.arange(len(points)) < count, Kind.WALL, Kind.DUMMY)
+    return points, kind
+
+
+def _weir(length: float, weir: float, layers: int, l0: float):
+    """The tail weir's points at the bed's end and their kinds: every face that
+    water can touch (upstream, crest, downstream) is lined with pressure walls, as
+    dummies carry no pressure and an exposed dummy face lets fluid through."""
+    w = geometry.block([length, 0.0], [length + layers * l0, weir], l0)
+    exposed = np.minimum.reduce(
+        [w[:, 0] - length, weir - w[:, 1], length + layers * l0 - w[:, 0]]
+    )
+    layer = np.rint(exposed / l0 - 0.5).astype(int)
+    return w, np.where(layer == 0, Kind.WALL, Kind.DUMMY)
+
+
+def _pool(c: dict, u_in: float, level: float, length: float, rows: int, n_fluid: int):
+    """Inactive slots for the inflow: the `pool` setting, or enough for what enters
+    over t_end on a dry bed, for the bed filled up to 1.5 x the level a tail weir
+    holds, or for the inflow depth (the flow deepens as it develops)."""
+    if c["pool"] is not None:
+        return int(c["pool"])
+    l0 = c["spacing"]
+    columns = math.ceil(u_in * float(c["t_end"]) / l0) + 2
+    stored = math.ceil(1.5 * level * length / l0**2) + 4 * rows - n_fluid
+    return max(rows * columns if not c["initial_fill"] else 0, stored, 4 * rows)
 
 
 def _with_boundaries(scene: Scene, inflow: Inflow, outflow: Outflow) -> Scene:

@@ -211,53 +211,45 @@ def sloshing_tank(**overrides) -> Case:
         if not s > 0:
             raise ValueError("slope must be positive (horizontal run per unit rise).")
         length = whole(base + s * height, l0)
-        layers = boundary_layers(c)
-        walls, wall_kind = _open_tank(c, length, height)
-        keep = walls[:, 0] < base  # left wall and the bed under the flat bottom
-        walls, wall_kind = walls[keep], wall_kind[keep]
-        grid = geometry.block(
-            [base - 2 * layers * l0, -layers * l0], [length, height], l0
-        )
-        rise = (grid[:, 0] - base) / s  # slope surface height above the bed
-        dist = (rise - grid[:, 1]) / math.sqrt(1 + 1 / s**2)
-        slab = (dist > 0) & (dist < layers * l0) & (grid[:, 0] >= base)
-        slab |= (grid[:, 1] < 0) & (grid[:, 0] >= base) & (dist < layers * l0)
-        slope_walls = grid[slab]
-        slope_kind = np.where(dist[slab] < l0, Kind.WALL, Kind.DUMMY)
-        walls = np.concatenate([walls, slope_walls])
-        wall_kind = np.concatenate([wall_kind, slope_kind]).astype(np.int32)
-        fluid = geometry.block([0.0, 0.0], [length, depth], l0)
-        above = fluid[:, 1] > (fluid[:, 0] - base) / s + 0.5 * l0
-        fluid = fluid[above | (fluid[:, 0] < base)]
+        fluid, walls, wall_kind = _sloped_tank(c, base, s, length, height, depth)
         scene, params, state = _assemble(
             c, fluid, walls, wall_kind, height, depth, motion=law
         )
         n_fluid = len(fluid)
         wall_x = -0.5 * l0
         anchor = n_fluid + _nearest(walls, [wall_x, 0.5 * depth])
+        frame = dict(anchor=anchor, anchor_x=wall_x)
         probes = (
-            StripLevel(
-                "eta_left",
-                0.5 * strip,
-                strip,
-                l0,
-                depth,
-                anchor=anchor,
-                anchor_x=wall_x,
-            ),
+            StripLevel("eta_left", 0.5 * strip, strip, l0, depth, **frame),
             RunUp("run_up", anchor, wall_x, base, s, 1.5 * l0, depth),
         )
         config = {**c, "depth": depth, "bottom_width": base}
-    return Case(
-        name="sloshing_tank",
-        scene=scene,
-        params=params,
-        state=state,
-        probes=probes,
-        t_end=float(c["t_end"]),
-        config=config,
-    )
+    t_end = float(c["t_end"])
+    return Case("sloshing_tank", scene, params, state, probes, t_end, config)
 
 
 def _nearest(points, target) -> int:
     return int(np.argmin(np.linalg.norm(points - np.asarray(target), axis=1)))
+
+
+def _sloped_tank(c: dict, base: float, s: float, length: float, height, depth):
+    """Water, walls and wall kinds of the sloped tank: a vertical left wall, a flat
+    bottom of `base`, and a right wall rising 1 : `s` built as a lattice staircase
+    (wall particles within l0 of the slope, dummies behind, measured normal to
+    it)."""
+    l0 = c["spacing"]
+    layers = boundary_layers(c)
+    walls, wall_kind = _open_tank(c, length, height)
+    keep = walls[:, 0] < base  # left wall and the bed under the flat bottom
+    walls, wall_kind = walls[keep], wall_kind[keep]
+    grid = geometry.block([base - 2 * layers * l0, -layers * l0], [length, height], l0)
+    rise = (grid[:, 0] - base) / s  # slope surface height above the bed
+    dist = (rise - grid[:, 1]) / math.sqrt(1 + 1 / s**2)
+    slab = (dist > 0) & (dist < layers * l0) & (grid[:, 0] >= base)
+    slab |= (grid[:, 1] < 0) & (grid[:, 0] >= base) & (dist < layers * l0)
+    slope_kind = np.where(dist[slab] < l0, Kind.WALL, Kind.DUMMY)
+    walls = np.concatenate([walls, grid[slab]])
+    wall_kind = np.concatenate([wall_kind, slope_kind]).astype(np.int32)
+    fluid = geometry.block([0.0, 0.0], [length, depth], l0)
+    above = fluid[:, 1] > (fluid[:, 0] - base) / s + 0.5 * l0
+    return fluid[above | (fluid[:, 0] < base)], walls, wall_kind
