@@ -106,10 +106,19 @@ def choose_save_every(n_steps: int) -> int:
     return min(divisors, key=lambda d: (n_steps / d + d, d))
 
 
-def build_case(scene_name: str, spacing: float, width: float, depth: float):
+def build_case(
+    scene_name: str, spacing: float, width: float, depth: float, stepping: str
+):
+    """The case, with fixed steps of the scene's largest step ("fixed") or the
+    scene's default adaptive steps ("adaptive")."""
     if scene_name == "hydrostatic":
-        return jaxmps.scenes.hydrostatic(spacing=spacing, width=width, depth=depth)
-    return jaxmps.scenes.dam_break(spacing=spacing)
+        build = lambda **s: jaxmps.scenes.hydrostatic(  # noqa: E731
+            spacing=spacing, width=width, depth=depth, **s
+        )
+    else:
+        build = lambda **s: jaxmps.scenes.dam_break(spacing=spacing, **s)  # noqa: E731
+    case = build()
+    return build(dt=float(case.params.dt)) if stepping == "fixed" else case
 
 
 def loss_fn(params, scene, state, n_steps, save_every, checkpoint):
@@ -159,7 +168,9 @@ def lower_compile(fn, *args):
 
 
 def worker(cfg: dict) -> dict:
-    case = build_case(cfg["scene"], cfg["spacing"], cfg["width"], cfg["depth"])
+    case = build_case(
+        cfg["scene"], cfg["spacing"], cfg["width"], cfg["depth"], cfg["stepping"]
+    )
     scene, params, state = case.scene, case.params, case.state
     jax.block_until_ready((params, state))
     baseline_peak = peak_rss_bytes()
@@ -437,6 +448,14 @@ def main(argv=None):
         "--scene", choices=("hydrostatic", "dam_break"), default="hydrostatic"
     )
     p.add_argument("--spacing", type=float, default=0.005)
+    p.add_argument(
+        "--stepping",
+        choices=("fixed", "adaptive"),
+        default="fixed",
+        help="fixed steps (a scan per save) or the scenes' default adaptive steps "
+        "(a checkpointed while loop per save); results go to "
+        "gradient_memory[_adaptive]_<backend>",
+    )
     p.add_argument("--width", type=float, default=0.3, help="hydrostatic tank width")
     p.add_argument("--depth", type=float, default=0.2, help="hydrostatic water depth")
     p.add_argument("--repeats", type=int, default=2)
@@ -470,9 +489,8 @@ def main(argv=None):
 
     info = machine_info()
     backend = "gpu" if info["backend"] == "gpu" else "cpu"
-    out = (
-        Path(args.out) if args.out else HERE / "results" / f"gradient_memory_{backend}"
-    )
+    name = "gradient_memory" + ("_adaptive" if args.stepping == "adaptive" else "")
+    out = Path(args.out) if args.out else HERE / "results" / f"{name}_{backend}"
     out.parent.mkdir(parents=True, exist_ok=True)
     settings = {
         "all": (True, "steps", False),
@@ -489,6 +507,7 @@ def main(argv=None):
         for t in args.steps:
             cfg = {
                 "scene": args.scene,
+                "stepping": args.stepping,
                 "spacing": args.spacing,
                 "width": args.width,
                 "depth": args.depth,

@@ -9,7 +9,8 @@ Everyday API, re-exported here:
 - running it: `step`, `simulate` (and `lower_simulate` to time compilation),
   `run` (host driver with run files), `with_neighbour_lists` /
   `without_neighbour_lists` for loops of `step`; `Trajectory`, `Frame`, `frame`,
-  `StepInfo`, `Result`;
+  `StepInfo`, `Result`; adaptive time steps: `Adaptive`, `time_step`,
+  `time_step_limits`, `StepHistory`;
 - sweeps and fits: `sweep`, `calibrate`;
 - the two pressure stages `SemiImplicit`, `Explicit` and the gradients
   `CorrectedGradient`, `StandardGradient`, with the weight `MPSWeight`;
@@ -41,14 +42,18 @@ from ._result import Result as Result
 from ._result import StepInfo as StepInfo
 from ._scene import Scene as Scene
 from ._simulate import Frame as Frame
+from ._simulate import StepHistory as StepHistory
 from ._simulate import Trajectory as Trajectory
 from ._simulate import frame as frame
 from ._simulate import lower_simulate as lower_simulate
 from ._simulate import simulate as simulate
 from ._state import State as State
 from ._step import step as step
+from ._step import time_step as time_step
+from ._step import time_step_limits as time_step_limits
 from ._step import with_neighbour_lists as with_neighbour_lists
 from ._step import without_neighbour_lists as without_neighbour_lists
+from ._stepping import Adaptive as Adaptive
 from ._types import Kind as Kind
 from .calibration import calibrate as calibrate
 from .calibration import sweep as sweep

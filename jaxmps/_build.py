@@ -12,6 +12,7 @@ from ._params import Params, RigidParams
 from ._result import Result
 from ._scene import Scene
 from ._state import State
+from ._stepping import Adaptive
 from ._types import Kind
 from .neighbours import Grid, candidate_counts
 from .operators import Discretisation, lattice_offsets, reference_constants
@@ -35,6 +36,7 @@ def make_scene(
     neighbour_skin: float = NEIGHBOUR_SKIN,
     courant_limit: float = 0.5,
     viscous_limit: float = 1.0,
+    time_step: Adaptive | None = None,
 ) -> Scene:
     """Build a Scene for the initial particle positions.
 
@@ -62,6 +64,9 @@ def make_scene(
             1 % of the steps beyond 0.06 l0) in the 2-D dam break at l0 = 7.3 mm.
         courant_limit, viscous_limit: stability limits checked every step (see
             `Scene`); `viscous_limit=math.inf` switches the viscous check off.
+        time_step: None (the default) steps by `Params.dt`; `jaxmps.Adaptive()`
+            chooses each step's dt from the flow, at most `Params.dt` (the built-in
+            scenes do, unless given `dt` in seconds).
 
     Returns:
         The Scene, with n0 and lambda of the regular lattice (DESIGN.md §7).
@@ -106,6 +111,7 @@ def make_scene(
         surface=scheme.surface,
         collision=scheme.collision,
         stabiliser=scheme.stabiliser,
+        time_step=time_step,
     )
 
 
@@ -232,6 +238,8 @@ def make_state(
     return State(
         time=jnp.asarray(0.0, dtype),
         step=jnp.asarray(0, jnp.int32),
+        dt=jnp.asarray(0.0, dtype),
+        acceleration=jnp.asarray(0.0, dtype),
         position=jnp.asarray(pos, dtype),
         velocity=jnp.asarray(vel, dtype),
         pressure=jnp.asarray(prs, dtype),

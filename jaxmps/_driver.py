@@ -2,7 +2,6 @@
 
 import contextlib
 import dataclasses
-import itertools
 import math
 import os
 import signal
@@ -19,7 +18,7 @@ from jaxtyping import Array, ArrayLike, Int
 from ._checks import check_compatible
 from ._result import Result, result_code
 from ._scene import Scene
-from ._simulate import Frame, frame, simulate
+from ._simulate import Frame, StepHistory, frame, simulate
 from ._state import State
 from .io import RunWriter, load_state
 from .scenes import Case
@@ -81,14 +80,18 @@ class RunInterrupted(KeyboardInterrupt):
 
 @dataclasses.dataclass(frozen=True)
 class _Plan:
-    """The saves a run makes: `n_saves` saves of `steps_per_save` steps, computed in
-    chunks of `chunk` saves (one compiled program), then a last save of `tail`
-    (< `steps_per_save`) steps that ends the run within a step of `t_end`."""
+    """The saves a run makes: at `times` (every `save_every` from the run's start,
+    and `t_end`), computed in chunks of `chunk` saves (one compiled program), each
+    save in at most `max_steps` step attempts."""
 
-    steps_per_save: int
-    n_saves: int
+    times: np.ndarray
     chunk: int
-    tail: int = 0
+    max_steps: int
+
+    def chunks(self):
+        """The save times of each chunk."""
+        for start in range(0, len(self.times), self.chunk):
+            yield self.times[start : start + self.chunk]
 
 
 def _largest_divisor(n: int, limit: int) -> int:
@@ -125,32 +128,51 @@ _MAX_STEPS = 2**31 - 1
 
 
 def _plan(
-    dt: float, t_end: float, save_every: float, t_now: float | None, chunk_saves: int
+    dt: float,
+    t_end: float,
+    save_every: float,
+    t_now: float,
+    chunk_saves: int,
+    max_steps: int | None,
 ) -> _Plan:
-    """Steps per save (save_every rounded to whole steps) and the saves to make: to
-    `t_end` from the start, or on restart from `t_now` at this dt (a restart may
-    change dt). The last save is shortened so that the run ends at the step
-    nearest `t_end`."""
+    """The saves from `t_now` to `t_end`: at every multiple of `save_every` (a
+    restart continues the same grid) and at `t_end`, each reached exactly (the
+    last step before a save is shortened). `dt` is `Params.dt`, the step (fixed)
+    or the largest step (adaptive): it sizes the default bound on steps per
+    save."""
     t_end = _seconds("t_end", t_end)
     save_every = _seconds("save_every", save_every)
-    if t_now is None and dt > t_end:
-        raise ValueError(
-            f"t_end={t_end:g} s is shorter than one time step (dt={dt:.4g} s); "
-            "raise `t_end` or give a smaller `dt`."
-        )
     if not int(chunk_saves) >= 1:
         raise ValueError(f"chunk_saves must be at least 1, got {chunk_saves!r}.")
-    total_steps = max(1, round(t_end / dt))
-    if total_steps > _MAX_STEPS:
+    if t_end / dt > _MAX_STEPS:
         raise ValueError(
-            f"t_end={t_end:g} s is {total_steps:.3g} steps of dt={dt:.4g} s, beyond "
+            f"t_end={t_end:g} s is {t_end / dt:.3g} steps of dt={dt:.4g} s, beyond "
             f"the {_MAX_STEPS} steps a run counts; lower `t_end` or raise `dt`."
         )
-    steps_per_save = max(1, min(total_steps, round(save_every / dt)))
-    remaining = total_steps if t_now is None else round((t_end - t_now) / dt)
-    n_saves, tail = divmod(max(0, remaining), steps_per_save)
-    chunk = _largest_divisor(n_saves, int(chunk_saves)) if n_saves else 0
-    return _Plan(steps_per_save=steps_per_save, n_saves=n_saves, chunk=chunk, tail=tail)
+    # Saves closer than a millionth of an interval to the next are merged into it
+    # (t_end a float's rounding beyond a multiple of save_every).
+    slack = 1e-6 * save_every
+    first = math.floor((t_now + slack) / save_every) + 1
+    last = math.ceil((t_end - slack) / save_every)
+    times = [k * save_every for k in range(first, last)]
+    if t_end > t_now + slack:
+        times.append(t_end)
+    times = np.asarray(times, dtype=float)
+    chunk = _largest_divisor(len(times), int(chunk_saves)) if len(times) else 1
+    if max_steps is None:
+        longest = (
+            float(np.max(np.diff(np.concatenate([[t_now], times]))))
+            if len(times)
+            else save_every
+        )
+        max_steps = min(20 * math.ceil(longest / dt) + 100, _MAX_STEPS)
+    elif isinstance(max_steps, bool) or not (
+        isinstance(max_steps, (int, np.integer)) and max_steps >= 1
+    ):
+        raise ValueError(
+            f"max_steps_per_save must be a positive whole number, got {max_steps!r}."
+        )
+    return _Plan(times=times, chunk=chunk, max_steps=int(max_steps))
 
 
 def check_output(
@@ -271,10 +293,13 @@ def _write(
     steps: np.ndarray,
     values: dict[str, np.ndarray],
     state: State | None = None,
+    history: StepHistory | None = None,
 ) -> None:
     if writer is None:
         return
     writer.append_frames(fr, step=steps)
+    if history is not None:
+        writer.append_steps(history)
     writer.append_probes(values)
     if state is not None:
         writer.write_state(state)
@@ -287,7 +312,14 @@ def _first_frame(
     fr, step, _, values = _host(observer(case.scene, state))
     fr = jax.tree_util.tree_map(lambda x: x[None], fr)
     values = {k: np.asarray(v)[None] for k, v in values.items()}
-    _write(writer, fr, np.asarray(step)[None], values, state)
+    nan = np.full(1, np.nan)
+    first = StepHistory(
+        accepted=np.zeros(1, np.int32),
+        rejected=np.zeros(1, np.int32),
+        dt_min=nan,
+        dt_max=nan,
+    )
+    _write(writer, fr, np.asarray(step)[None], values, state, first)
     return values
 
 
@@ -295,11 +327,13 @@ def _chunk(
     case: Case,
     observer: _Observer,
     state: State,
+    times: np.ndarray,
     plan: _Plan,
     writer: RunWriter | None,
     out: Path | None,
 ) -> tuple[State, dict[str, np.ndarray]]:
-    """Run one chunk of saves and write it; the new state and its probe rows.
+    """Run one chunk of saves (at `times`) and write it; the new state and its
+    probe rows.
 
     Raises:
         RuntimeError: if the chunk failed, after writing every frame up to the
@@ -309,20 +343,21 @@ def _chunk(
         case.scene,
         case.params,
         state,
-        plan.chunk * plan.steps_per_save,
-        plan.steps_per_save,
+        times=times,
+        max_steps=plan.max_steps,
         observe=observer,
         throw=False,
     )
     fr, steps, results, values = _host(trajectory.saved)
+    history = _host(trajectory.steps)
     if int(np.asarray(result_code(trajectory.result))) == 0:
-        _write(writer, fr, steps, values, trajectory.state)
+        _write(writer, fr, steps, values, trajectory.state, history)
         return trajectory.state, values
     bad = np.nonzero(np.asarray(results) != 0)[0]
-    keep = int(bad[0]) + 1 if len(bad) else plan.chunk
-    fr, steps, values = _rows((fr, steps, values), keep)
-    _write(writer, fr, steps, values)
-    good = _last_good(case, observer, state, keep - 1, plan, writer)
+    keep = int(bad[0]) + 1 if len(bad) else len(times)
+    fr, steps, values, history = _rows((fr, steps, values, history), keep)
+    _write(writer, fr, steps, values, history=history)
+    good = _last_good(case, observer, state, times[: keep - 1], plan, writer)
     where = f" Written so far: '{out}'." if out is not None else ""
     raise RuntimeError(
         f"The run of '{case.name}' failed between "
@@ -336,21 +371,21 @@ def _last_good(
     case: Case,
     observer: _Observer,
     state: State,
-    saves: int,
+    times: np.ndarray,
     plan: _Plan,
     writer: RunWriter | None,
 ) -> State:
-    """The state of the last successful save of a failed chunk (`saves` saves after
-    `state`), replayed (the rollout is deterministic) and written as `/state`, so
-    that a restart continues from there."""
-    if saves < 1:
+    """The state of the last successful save of a failed chunk (the saves at
+    `times` after `state`), replayed (the rollout is deterministic) and written as
+    `/state`, so that a restart continues from there."""
+    if len(times) < 1:
         return state
     good = simulate(
         case.scene,
         case.params,
         state,
-        saves * plan.steps_per_save,
-        plan.steps_per_save,
+        times=times,
+        max_steps=plan.max_steps,
         observe=observer,
         throw=False,
     ).state
@@ -359,16 +394,19 @@ def _last_good(
     return good
 
 
-def _progress(show: bool, plan: _Plan, label: str):
-    """A progress bar over the run's steps (shown after 3 s), or a null context."""
-    if not (show and (plan.n_saves or plan.tail)):
+def _progress(show: bool, plan: _Plan, t_now: float, label: str):
+    """A progress bar over the run's simulated time (shown after 3 s), or a null
+    context."""
+    if not (show and len(plan.times)):
         return contextlib.nullcontext(None)
     from tqdm.auto import tqdm
 
     return tqdm(
-        total=plan.n_saves * plan.steps_per_save + plan.tail,
+        total=round(float(plan.times[-1]) - t_now, 9),
         delay=3.0,
-        unit="step",
+        unit="s",
+        unit_scale=False,
+        bar_format="{l_bar}{bar}| {n:.4g}/{total:.4g} s [{elapsed}<{remaining}]",
         desc=label,
         leave=False,
     )
@@ -393,13 +431,17 @@ def run(
     restart: bool = False,
     restart_from: str | os.PathLike | None = None,
     overwrite: bool = False,
+    max_steps_per_save: int | None = None,
 ) -> RunResult:
     """Run a case to `t_end` on the host, in chunks of `simulate`, saving as it goes.
 
-    The run is `n_saves` saves of `save_every` each; they are computed in chunks of an
-    equal number of saves (the largest divisor of `n_saves` not above `chunk_saves`)
-    so that `simulate` compiles once; a last, shorter save ends the run at the
-    step nearest `t_end`. Between chunks the frames and probes are appended to the
+    The run saves at every multiple of `save_every` and at `t_end`, exactly (the
+    last step before a save is shortened to land on it; a restart continues the
+    same grid of times). The saves are computed in chunks of an equal number
+    (the largest divisor of their number not above `chunk_saves`) so that
+    `simulate` compiles once. Each save records the smallest and largest dt since
+    the previous one and the steps taken again (run file `/frames/dt_min`,
+    `dt_max`, `rejected`). Between chunks the frames and probes are appended to the
     run file and `/state` is updated. Each chunk runs with `throw=False`; its
     result is checked on the host.
 
@@ -417,8 +459,7 @@ def run(
             of the run, not the time to add.
         out: run file (`.h5` or `.hdf5`) to write, with an `.xdmf` sidecar; None
             writes nothing.
-        save_every: simulated time between saves [s] (default: t_end / 100), rounded
-            to a whole number of steps.
+        save_every: simulated time between saves [s] (default: t_end / 100).
         progress: show a progress bar when the run takes more than a few seconds.
         chunk_saves: the most saves per compiled chunk.
         restart: continue from `/state` of `out` and append to it.
@@ -427,6 +468,9 @@ def run(
         overwrite: replace an existing `out` (and its sidecar); without it an
             existing file is refused, as by `jaxmps run` without `--overwrite`.
             The old file stays until the new one has its first frame.
+        max_steps_per_save: the most step attempts between two saves before the
+            run ends with `Result.too_many_steps` (default: 20 times the steps of
+            `Params.dt` in a save interval, plus 100).
 
     Returns:
         A `RunResult`.
@@ -451,9 +495,9 @@ def run(
     out = None if out is None else Path(out)
     restart_from, append = _restart_source(out, restart, restart_from)
     state = _starting_state(case, out, restart_from, append, overwrite)
-    t_now = None if restart_from is None else float(np.asarray(state.time))
+    t_now = float(np.asarray(state.time))
     dt = float(np.asarray(case.params.dt))
-    plan = _plan(dt, t_end, save_every, t_now, chunk_saves)
+    plan = _plan(dt, t_end, save_every, t_now, chunk_saves, max_steps_per_save)
     done = int(np.asarray(state.step))
 
     writer = None
@@ -461,7 +505,7 @@ def run(
         try:
             writer = _open_writer(out, case, append, done)
             label = f"{case.name} (t_end={t_end:g} s)"
-            with _progress(progress, plan, label) as bar:
+            with _progress(progress, plan, t_now, label) as bar:
                 state, rows = _saves(
                     case, state, plan, writer, out, append, bar, received
                 )
@@ -553,18 +597,14 @@ def _saves(
         rows.append(_first_frame(observer, case, state, writer))
         if writer is not None:
             writer.move_to(out)
-    chunks = itertools.repeat(plan, plan.n_saves // plan.chunk if plan.chunk else 0)
-    if plan.tail:
-        chunks = itertools.chain(
-            chunks, [_Plan(steps_per_save=plan.tail, n_saves=1, chunk=1)]
-        )
-    for part in chunks:
+    for times in plan.chunks():
         if received:
             break
-        state, values = _chunk(case, observer, state, part, writer, out)
+        before = float(np.asarray(state.time))
+        state, values = _chunk(case, observer, state, times, plan, writer, out)
         rows.append(values)
         if bar is not None:
-            bar.update(part.chunk * part.steps_per_save)
+            bar.update(round(float(times[-1]) - before, 9))
     if received:
         raise RunInterrupted(received[0], out, float(np.asarray(state.time)))
     return state, rows

@@ -44,7 +44,23 @@ class Result(eqx.Enumeration):
         "The time step is beyond a stability limit: the Courant number max|u| dt / l0 "
         "exceeded `Scene.courant_limit`, the viscous number 2 d nu dt / lambda "
         "exceeded `Scene.viscous_limit`, or (explicit solver) c dt / l0 exceeded "
-        "`Explicit.sound_courant`. Reduce `dt` (scene override `dt=...`)."
+        "`Explicit.sound_courant`. Reduce `dt` (scene override `dt=...`), or "
+        "let the run choose it (scene setting `dt='adaptive'`, the default)."
+    )
+    time_step_below_minimum = (
+        "The adaptive time step fell below `Adaptive.dt_min` (by default 1e-3 x "
+        "the largest step): one of `jaxmps.time_step_limits` asked for less. "
+        "Either a particle became too fast or too strongly accelerated for the "
+        "resolution, usually a sign of an instability (a particle squeezed into "
+        "a wall, a body overlapping another), or the viscosity is so large that "
+        "its diffusion limit is tiny. Check the setup and the viscosity, or lower "
+        "the bound (scene setting `dt_min=...`)."
+    )
+    too_many_steps = (
+        "A save interval needed more steps than the bound on steps per save "
+        "(`simulate(max_steps=...)`; `jaxmps.run(max_steps_per_save=...)`, "
+        "`--max-steps-per-save` on the command line). Raise it, or save more "
+        "often (`save_every`)."
     )
 
 

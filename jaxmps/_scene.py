@@ -4,6 +4,7 @@ from typing import ClassVar
 
 import equinox as eqx
 
+from ._stepping import Adaptive
 from .bodies import AbstractBodyModel, RigidBodies
 from .fluid import (
     AbstractPressureSolver,
@@ -57,6 +58,8 @@ class Scene(eqx.Module):
         outflow: optional outflow plane returning fluid to the pool.
         motion: optional prescribed motion of wall particles (piston, shaken tank).
         rigid: optional rigid bodies (with contact and friction).
+        time_step: how each step's dt is chosen: None takes `Params.dt` every
+            step; `Adaptive()` takes the flow's own limits, at most `Params.dt`.
         body_fields: the fields that hold body models (`AbstractBodyModel`), in the
             order they advance.
     """
@@ -86,6 +89,7 @@ class Scene(eqx.Module):
     outflow: Outflow | None = None
     motion: PrescribedMotion | None = None
     rigid: RigidBodies | None = None
+    time_step: Adaptive | None = None
 
     @property
     def body_models(self) -> tuple[AbstractBodyModel, ...]:

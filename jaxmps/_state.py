@@ -57,6 +57,10 @@ class State(eqx.Module):
     Attributes:
         time: simulated time [s].
         step: number of steps taken.
+        dt: the last step's dt [s] (0 before the first).
+        acceleration: the largest |du/dt| of a fluid or body particle over the
+            last step [m/s^2] (0 before the first); adaptive steps read it
+            (`jaxmps.Adaptive`, the force limit).
         position: particle positions [m], shape (n, d).
         velocity: particle velocities [m/s], shape (n, d).
         pressure: particle pressures [Pa] (gauge; 0 on the free surface), shape (n,).
@@ -75,6 +79,8 @@ class State(eqx.Module):
 
     time: Float[Array, ""]
     step: Int[Array, ""]
+    dt: Float[Array, ""]
+    acceleration: Float[Array, ""]
     position: Float[Array, "n d"]
     velocity: Float[Array, "n d"]
     pressure: Float[Array, " n"]

@@ -31,7 +31,7 @@ import dataclasses
 import equinox as eqx
 import jax
 import jax.numpy as jnp
-from jaxtyping import Array, Bool
+from jaxtyping import Array, Bool, Float
 
 from . import fluid, neighbours, operators
 from ._checks import check_compatible
@@ -103,7 +103,9 @@ def _step(
 
     with jax.named_scope("result"):
         info = _info(solution, nbrs_k, nbrs)
-        new = _record(scene, params, new, info, pool_short, mobile & new.active)
+        new = _record(
+            scene, params, new, info, pool_short, mobile & new.active, state.velocity
+        )
     return new, info
 
 
@@ -201,6 +203,7 @@ def _advanced(
         state,
         time=state.time + dt,
         step=state.step + 1,
+        dt=dt,
         position=x_star + dt * u_prime,
         velocity=u_star + u_prime,
         pressure=pressure,
@@ -243,12 +246,20 @@ def _record(
     info: StepInfo,
     pool_short: Bool[Array, ""],
     mobile: Mask,
+    velocity_k: Velocities,
 ) -> State:
     """Record the step's first failure in the state's result: overflows, an empty
     pool, a particle out of the domain, a step beyond a stability limit (over the
-    `mobile` particles), an unconverged pressure solve, a non-finite state."""
+    `mobile` particles), an unconverged pressure solve, a non-finite state; and
+    the step's largest acceleration (from the velocities at its start,
+    `velocity_k`)."""
     speed = jnp.sqrt(jnp.sum(new.velocity**2, axis=-1))
     courant = jnp.max(jnp.where(mobile, speed, 0.0)) * params.dt / scene.spacing
+    # A diagnostic of the dt choice, which is a constant to the gradient (and the
+    # norm's derivative at a particle at rest is not finite).
+    change = jax.lax.stop_gradient(new.velocity - velocity_k)
+    change = jnp.sqrt(jnp.sum(change**2, axis=-1))
+    acceleration = jnp.max(jnp.where(mobile, change, 0.0), initial=0.0) / params.dt
     viscous = 2 * scene.dim * params.viscosity * params.dt / scene.lam
     finite = jnp.all(
         jnp.where(
@@ -275,13 +286,81 @@ def _record(
         result, ~info.pressure_converged, Result.pressure_not_converged
     )
     result = update_result(result, ~finite, Result.nonfinite_state)
-    return eqx.tree_at(lambda s: s.result, new, result)
+    return dataclasses.replace(new, result=result, acceleration=acceleration)
+
+
+def mobile_maximum(values: Float[Array, " n"], state: State) -> Scalar:
+    """The largest of `values` over the active fluid and body particles (0 if
+    none)."""
+    mobile = fluid.is_mobile(state.kind, state.active)
+    return jnp.max(jnp.where(mobile, values, 0.0), initial=0.0)
+
+
+def time_step_limits(scene: Scene, params: Params, state: State) -> dict[str, Scalar]:
+    """Every limit `Adaptive` takes the smallest of, by name [s] (inf where a limit
+    does not apply); for a Scene with fixed steps, only "dt" (`Params.dt`).
+
+    Useful to see which limit sets the step of a flow: observe it in `simulate`.
+    """
+    stepping = scene.time_step
+    limits = {"dt_max" if stepping is not None else "dt": params.dt}
+    if stepping is None:
+        return limits
+    l0 = scene.spacing
+    speed = mobile_maximum(jnp.linalg.norm(state.velocity, axis=-1), state)
+    inf = jnp.asarray(jnp.inf, params.dt.dtype)
+    limits["courant"] = jnp.where(
+        speed > 0, stepping.courant * l0 / jnp.where(speed > 0, speed, 1.0), inf
+    )
+    accel = state.acceleration
+    limits["force"] = jnp.where(
+        accel > 0,
+        stepping.force * jnp.sqrt(l0 / jnp.where(accel > 0, accel, 1.0)),
+        inf,
+    )
+    nu = params.viscosity
+    limits["viscous"] = jnp.where(
+        nu > 0,
+        stepping.stability
+        * scene.viscous_limit
+        * scene.lam
+        / (2 * scene.dim * jnp.where(nu > 0, nu, 1.0)),
+        inf,
+    )
+    limits["solver"] = stepping.stability * scene.solver.time_step_limit(
+        scene.discretisation, params
+    )
+    for model in scene.body_models:
+        limits[model.name] = stepping.stability * model.time_step_limit(
+            scene.discretisation, params, state
+        )
+    return {k: jnp.asarray(v, params.dt.dtype) for k, v in limits.items()}
+
+
+def time_step(scene: Scene, params: Params, state: State) -> Scalar:
+    """The dt of the next step: `Params.dt` with fixed steps, else the smallest of
+    `time_step_limits`.
+
+    The choice is a constant to the gradient (`stop_gradient`): the gradient of a
+    rollout is that of the same steps taken with those dt values. The dt is a
+    numerical choice, not a model of the flow: the derivative of a limit (a
+    maximum over particles) jumps whenever another particle or another limit
+    takes over, and carried through thousands of steps it would add such jumps
+    to every gradient while changing the modelled physics not at all.
+    """
+    if scene.time_step is None:
+        return params.dt
+    limits = time_step_limits(scene, params, state)
+    dt = jnp.min(jnp.stack(list(limits.values())))
+    return jax.lax.stop_gradient(dt)
 
 
 def step(
     scene: Scene, params: Params, state: State, *, batch_axis: str | None = None
 ) -> tuple[State, StepInfo]:
-    """Advance `state` by one time step `params.dt`.
+    """Advance `state` by one time step: `params.dt`, or with adaptive steps
+    (`Scene.time_step`) `time_step(scene, params, state)` (not retried if it
+    fails: `simulate` retries).
 
     Failures are recorded in the returned `state.result` (first failure wins); this
     function never raises at run time. Use `simulate` for rollouts. For a loop of
@@ -302,7 +381,14 @@ def step(
     return _jit_step(scene, params, state, batch_axis)
 
 
-_jit_step = eqx.filter_jit(_step)
+@eqx.filter_jit
+def _jit_step(
+    scene: Scene, params: Params, state: State, batch_axis: str | None
+) -> tuple[State, StepInfo]:
+    if scene.time_step is not None:
+        dt = time_step(scene, params, state)
+        params = eqx.tree_at(lambda p: p.dt, params, dt)
+    return _step(scene, params, state, batch_axis)
 
 
 def with_neighbour_lists(scene: Scene, state: State) -> State:

@@ -103,8 +103,14 @@ def _cmd_run(args) -> int:
         overrides = {**data.config, **overrides}
     case = scenes.build(scene, **overrides)
     n = int(case.state.active.sum())
+    dt = float(case.params.dt)
+    steps = (
+        f"adaptive dt <= {dt:.4g} s"
+        if case.scene.time_step is not None
+        else f"dt={dt:.4g} s"
+    )
     print(
-        f"jaxmps: {case.name}, {n} particles, dt={float(case.params.dt):.4g} s, "
+        f"jaxmps: {case.name}, {n} particles, {steps}, "
         f"t_end={args.t_end if args.t_end is not None else case.t_end:g} s"
         + (f" (restart from {source})" if restart else "")
     )
@@ -117,6 +123,7 @@ def _cmd_run(args) -> int:
             progress=not args.quiet,
             restart_from=source,
             overwrite=args.overwrite,
+            max_steps_per_save=args.max_steps_per_save,
         )
     except RuntimeError as e:
         print(f"jaxmps run: {e}", file=sys.stderr)
@@ -177,6 +184,14 @@ def _describe(data) -> int:
             f"  frames   {len(times)}, t = {times[0]:.4g} ... {times[-1]:.4g} s, "
             f"steps {int(data.frames['step'][0])} ... {int(data.frames['step'][-1])}"
         )
+        import numpy as np
+
+        low, high = data.frames.get("dt_min"), data.frames.get("dt_max")
+        if low is not None and np.any(np.isfinite(low)):
+            print(
+                f"  dt       {np.nanmin(low):.4g} ... {np.nanmax(high):.4g} s, "
+                f"{int(np.sum(data.frames['rejected']))} steps taken again"
+            )
     else:
         print("  frames   0")
     names = [k for k in data.probes if k != "time"]
@@ -317,6 +332,14 @@ def _parser() -> argparse.ArgumentParser:
         "--overwrite",
         action="store_true",
         help="replace an existing --out (kept until the new run has its first frame)",
+    )
+    p.add_argument(
+        "--max-steps-per-save",
+        type=int,
+        default=None,
+        metavar="N",
+        help="the most step attempts between two saves (default: 20 x the steps "
+        "of the largest dt in a save interval, + 100)",
     )
     p.add_argument("--x64", action="store_true", help="run in float64")
     p.add_argument(

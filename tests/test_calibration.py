@@ -190,8 +190,10 @@ def test_sweep_reports_a_failed_member():
 def test_calibrate_stops_at_a_failed_rollout_and_says_which():
     """An optimiser that multiplies the viscosity by e^3 per iteration takes it
     past the viscous limit at iterate 2: the fit stops there, its status and result
-    code say so, and it returns iterate 1."""
-    small = jaxmps.scenes.hydrostatic(spacing=0.05)
+    code say so, and it returns iterate 1. (Fixed steps: adaptive ones would
+    shorten to the viscous limit, until below `dt_min`.)"""
+    dt = float(jaxmps.scenes.hydrostatic(spacing=0.05).params.dt)
+    small = jaxmps.scenes.hydrostatic(spacing=0.05, dt=dt)
     scene, dt = small.scene, float(small.params.dt)
     start = 0.2 * scene.lam / (2 * scene.dim * dt)  # viscous number 0.2
     obs = jaxmps.scenes.observe_probes(small.probes)

@@ -148,7 +148,7 @@ def _one_line_error(capsys, argv, code=2):
         (["--set", "courant=0"], r"courant must be finite, in \(0, 1\]"),
         (
             ["--set", "gravity=0"],
-            r"gravity=0(\.0)? leaves no velocity scale.*give `dt`",
+            r"gravity=0(\.0)? leaves no velocity scale.*give `dt_max`",
         ),
         (["--set", "spacing=1e-5"], r"asks for 4e\+08 particles.*raise `spacing`"),
         (["--set", "spacing"], "--set expects NAME=VALUE"),

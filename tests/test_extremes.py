@@ -57,7 +57,16 @@ def test_just_inside_the_viscous_limit_stays_hydrostatic():
 
 def test_past_the_viscous_limit_is_refused_or_reported():
     base = _tank()
-    case = _tank(viscosity=_viscosity_for(base, 1.2))
+    viscosity = _viscosity_for(base, 1.2)
+    # Adaptive steps (the default) take at most half the viscous limit.
+    adaptive = _tank(viscosity=viscosity)
+    tr = jaxmps.simulate(
+        adaptive.scene, adaptive.params, adaptive.state, 2, 2, throw=False
+    )
+    assert tr.result == jaxmps.Result.successful
+    assert float(tr.steps.dt_max[0]) == pytest.approx(0.5 * float(base.params.dt) / 1.2)
+    # A fixed step beyond it is refused, or reported when traced.
+    case = _tank(viscosity=viscosity, dt=float(base.params.dt))
     with pytest.raises(ValueError, match=r"viscous stability limit.*Reduce `dt`"):
         jaxmps.simulate(case.scene, case.params, case.state, 2, 2)
     # Traced (a sweep, a gradient): the run ends with the result code instead.
@@ -72,7 +81,8 @@ def test_past_the_viscous_limit_is_refused_or_reported():
 
 
 def test_explicit_dt_past_the_sound_limit_is_refused_or_reported():
-    case = _tank(solver="explicit")
+    base = _tank(solver="explicit")
+    case = _tank(solver="explicit", dt=float(base.params.dt))
     limit = case.scene.solver.max_dt(case.scene.spacing, float(case.params.sound_speed))
     params = eqx.tree_at(lambda p: p.dt, case.params, jnp.asarray(1.05 * limit))
     with pytest.raises(ValueError, match=r"explicit \(E-MPS\) stability limit"):
@@ -103,8 +113,10 @@ def test_pressure_solve_that_cannot_converge_ends_the_run_clearly(tmp_path):
 def _escaping(domain_margin=None):
     """The tank with one surface particle thrown upwards at 2.5 m/s: it leaves the
     domain (the grid box, top at 0.377 m: whole cells of (r_e + skin) / 2) at
-    t ~ 0.1 s, between steps 20 and 25, unless the domain is taller."""
-    case = jaxmps.scenes.hydrostatic(spacing=0.04, domain_margin=domain_margin)
+    t ~ 0.1 s, between steps 20 and 25, unless the domain is taller. Fixed steps of
+    the scene's largest step, to count them."""
+    dt = float(jaxmps.scenes.hydrostatic(spacing=0.04).params.dt)
+    case = jaxmps.scenes.hydrostatic(spacing=0.04, domain_margin=domain_margin, dt=dt)
     fluid = np.nonzero(np.asarray(case.state.kind) == int(jaxmps.Kind.FLUID))[0]
     top = int(fluid[np.argmax(np.asarray(case.state.position)[fluid, 1])])
     velocity = case.state.velocity.at[top].set(jnp.array([0.0, 2.5]))
@@ -133,10 +145,15 @@ def test_failed_run_keeps_frames_and_last_good_state_and_restarts(tmp_path):
     rest = jaxmps.run(
         taller, t_end=0.3, save_every=save, out=path, restart=True, chunk_saves=20
     )
-    # To the step nearest t_end: ten saves of 5 steps and a last one of 4.
-    assert round(0.3 / dt) == 74 and int(rest.state.step) == 74
-    steps = io.read_run(path).frames["step"]
-    assert np.all(np.diff(steps) > 0) and steps[5] == 25 and steps[-1] == 74
+    # To t_end exactly: saves of 5 steps to 70 dt, and a last one of 4.28 dt
+    # made of 3 steps of dt and two of 0.64 dt (the last two evened out).
+    assert 0.3 / dt == pytest.approx(74.28, abs=0.01)
+    assert int(rest.state.step) == 75 and float(rest.state.time) == 0.3
+    frames = io.read_run(path).frames
+    steps = frames["step"]
+    assert np.all(np.diff(steps) > 0) and steps[5] == 25 and steps[-1] == 75
+    np.testing.assert_allclose(frames["dt_max"][-1], dt, rtol=1e-9)
+    np.testing.assert_allclose(frames["dt_min"][-1], 0.64 * dt, rtol=0.01)
 
 
 def test_cli_restart_with_a_changed_time_step(tmp_path, capsys):
@@ -158,13 +175,12 @@ def test_cli_restart_with_a_changed_time_step(tmp_path, capsys):
         == 0
     )
     data = io.read_run(path)
-    # Each run ends at the step nearest its t_end: 5 steps of the old dt (saves of
-    # 2, 2 and 1 step), then saves of 5 steps of the new dt.
+    # Saves at exact times; after the restart, 5 steps of the new fixed dt each.
+    np.testing.assert_array_equal(data.frames["time"], [0, 0.01, 0.02, 0.03, 0.04])
     steps = data.frames["step"]
-    np.testing.assert_array_equal(steps, [0, 2, 4, 5, 10, 15])
-    first, last = data.frames["time"][3], float(data.state["time"])
-    assert abs(last - 0.04) <= 0.5 * 0.002
-    assert last - first == pytest.approx(0.002 * (steps[-1] - steps[3]))
+    np.testing.assert_array_equal(np.diff(steps)[2:], [5, 5])
+    assert float(data.state["time"]) == 0.04
+    assert np.all(data.frames["dt_max"][3:] == 0.002)
     assert float(data.attrs["dt"]) == 0.002  # a later restart keeps the new dt
     assert "restart from" in capsys.readouterr().out
 

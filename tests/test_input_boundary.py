@@ -32,7 +32,7 @@ REFUSED_SETTINGS = {
     "sound_speed as a word": ({"sound_speed": "fast"}, r"'sound_speed'.*a number"),
     "gravity=0 with a derived dt": (
         {"gravity": 0.0},
-        r"gravity=0.0 leaves no velocity scale.*give `dt`",
+        r"gravity=0.0 leaves no velocity scale.*give `dt_max`",
     ),
 }
 

@@ -37,7 +37,7 @@ def test_round_trip(tmp_path, case, rollout):
     data = io.read_run(path)
     assert data.attrs["scene"] == "hydrostatic"
     assert data.config["spacing"] == 0.02
-    assert data.config["dt"] is None
+    assert data.config["dt"] == "adaptive"
     saved = rollout.saved
     for name in ("time", "position", "velocity", "pressure", "active"):
         np.testing.assert_array_equal(

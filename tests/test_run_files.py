@@ -63,14 +63,16 @@ def test_a_refused_setting_leaves_the_file_alone(tmp_path, case, capsys):
     path = tmp_path / "keep.h5"
     _run(case, path)
     before = _snapshot(path)
+    # A fixed step beyond the viscous limit (adaptive steps would bound it).
     args = ["run", "hydrostatic", "--set", "spacing=0.05", "--set", "viscosity=1.0"]
+    args += ["--set", "dt=0.001"]
     with pytest.raises(SystemExit) as exit_:
         main([*args, "--out", str(path), "--overwrite", "--quiet"])
     assert exit_.value.code == 2
     err = capsys.readouterr().err.strip()
     assert err.startswith("jaxmps run: error:") and "viscosity=1" in err
     assert "\n" not in err
-    viscous = jaxmps.scenes.hydrostatic(spacing=0.05, viscosity=1.0)
+    viscous = jaxmps.scenes.hydrostatic(spacing=0.05, viscosity=1.0, dt=0.001)
     with pytest.raises(ValueError, match="viscous stability limit"):
         _run(viscous, path, overwrite=True)
     assert _snapshot(path) == before
@@ -239,15 +241,18 @@ def test_a_restart_in_another_precision_is_refused(tmp_path):
     assert _snapshot(path) == before
 
 
-def test_the_run_ends_within_a_step_of_t_end(tmp_path, case):
-    dt = float(case.params.dt)
-    # Two chunks of two saves of 2 steps, then a last save of 1 step.
+def test_the_run_ends_at_t_end(tmp_path, case):
+    dt = float(case.params.dt)  # still water: every step is the largest
+    # Four saves of 2 steps (two chunks of two), then a last save of 1 step.
     result = _run(case, None, t_end=9 * dt)
     assert int(result.state.step) == 9
-    assert abs(float(result.state.time) - 9 * dt) < 1e-9
-    np.testing.assert_allclose(result.probes["time"] / dt, [0, 2, 4, 6, 8, 9])
-    with pytest.raises(ValueError, match=r"t_end=.* is shorter than one time step"):
-        _run(case, None, t_end=0.5 * dt)
+    assert float(result.state.time) == 9 * dt
+    np.testing.assert_allclose(
+        result.probes["time"] / dt, [0, 2, 4, 6, 8, 9], rtol=1e-12
+    )
+    # A run shorter than one step is one shorter step.
+    short = _run(case, None, t_end=0.5 * dt)
+    assert int(short.state.step) == 1 and float(short.state.time) == 0.5 * dt
     with pytest.raises(ValueError, match=r"t_end=1e\+300 s is .* steps .* beyond"):
         _run(case, None, t_end=1e300, save_every=1e-300)
     for bad in (float("nan"), float("inf"), -1.0, 0.0):

@@ -3,11 +3,13 @@
 import abc
 
 import equinox as eqx
+import jax.numpy as jnp
 from jaxtyping import Array, Int, Shaped
 
 from .._coupling import Coupling, FluidLoad
 from .._params import Params
 from .._state import State
+from .._types import Scalar
 from ..operators import Discretisation
 
 
@@ -58,6 +60,15 @@ class AbstractBodyModel(eqx.Module):
     def check(self, params: Params, state: State) -> None:
         """Trace-time check that the model's parameters and sub-state fit it
         (ValueError naming the setting to change)."""
+
+    def time_step_limit(
+        self, disc: Discretisation, params: Params, state: State
+    ) -> Scalar:
+        """The largest dt this model's bodies are stable at [s] (an elastic body's
+        P-wave, a grain contact's period); inf, the default, for none. Adaptive
+        steps take a fraction of it (`jaxmps.Adaptive.stability`)."""
+        del disc, state
+        return jnp.asarray(jnp.inf, params.dt.dtype)
 
     def observe(self, state: State) -> dict[str, Shaped[Array, "..."]]:
         """What a saved frame holds of the model: its sub-state's `frame_fields`."""

@@ -7,7 +7,7 @@ import jax.numpy as jnp
 
 from .._numerics import is_concrete
 from .._params import Params
-from .._types import PRESSURE_KINDS, is_kind
+from .._types import PRESSURE_KINDS, Scalar, is_kind
 from ..neighbours import Grid
 from ..operators import AbstractLaplacian, Discretisation
 from ._solver import AbstractPressureSolver, PressureInputs, PressureSolution
@@ -43,6 +43,9 @@ class Explicit(AbstractPressureSolver):
     def max_dt(self, spacing: float, sound_speed: float) -> float:
         """The sound-speed stability limit dt < sound_courant l0 / c [s]."""
         return self.sound_courant * spacing / float(sound_speed)
+
+    def time_step_limit(self, disc: Discretisation, params: Params) -> Scalar:
+        return self.sound_courant * disc.spacing / params.sound_speed
 
     def check_params(self, disc: Discretisation, params: Params) -> None:
         if not self.check_time_step:

@@ -3,10 +3,11 @@
 import abc
 
 import equinox as eqx
+import jax.numpy as jnp
 from jaxtyping import Array, Bool, Float, Int
 
 from .._params import Params
-from .._types import Field, Kinds, Mask, Velocities
+from .._types import Field, Kinds, Mask, Scalar, Velocities
 from ..neighbours import Grid
 from ..operators import AbstractLaplacian, Discretisation, Pairs
 
@@ -80,6 +81,12 @@ class AbstractPressureSolver(eqx.Module):
         inputs: PressureInputs,
     ) -> PressureSolution:
         """The pressure at r*."""
+
+    def time_step_limit(self, disc: Discretisation, params: Params) -> Scalar:
+        """The largest dt this stage is stable at [s] (inf: no limit of its own);
+        adaptive steps take a fraction of it (`jaxmps.Adaptive.stability`)."""
+        del disc
+        return jnp.asarray(jnp.inf, params.dt.dtype)
 
     def check_params(self, disc: Discretisation, params: Params) -> None:
         """Refuse, before any tracing, Params this solver cannot run (ValueError).

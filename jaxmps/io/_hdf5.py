@@ -30,6 +30,8 @@ STATE_FIELDS = (
     "active",
     "result",
 )
+# /state fields run files of earlier versions lack (read as 0 from those).
+LATER_STATE_FIELDS = ("dt", "acceleration")
 FRAME_FIELDS = ("time", "step", "position", "velocity", "pressure", "active")
 
 
@@ -260,6 +262,18 @@ class RunWriter:
         self.file.flush()
         self.write_xdmf()
 
+    def append_steps(self, history: Any) -> None:
+        """Append the steps behind each frame (a `jaxmps.StepHistory` with one
+        entry per frame) as /frames/dt_min, dt_max (nan for the first frame) and
+        rejected."""
+        frames = self.file["frames"]
+        for name in ("dt_min", "dt_max", "rejected"):
+            values = np.atleast_1d(np.asarray(getattr(history, name)))
+            if name not in frames:
+                _resizable(frames, name, values)
+            _append(frames[name], values)
+        self.file.flush()
+
     def append_probes(self, dict_batch: dict) -> None:
         """Append probe values: a dict {"time": (m,), name: (m, ...)}."""
         probes = self.file["probes"]
@@ -277,7 +291,7 @@ class RunWriter:
         if "state" in self.file:
             del self.file["state"]
         group = self.file.create_group("state")
-        for name in STATE_FIELDS:
+        for name in STATE_FIELDS + LATER_STATE_FIELDS:
             value = getattr(state, name)
             if name == "result":
                 value = int(np.asarray(result_code(value)))
@@ -426,7 +440,9 @@ class RunData:
             spacing, dt).
         config: the scene overrides the run was built with.
         particles: {"kind": (n,) int8, "body": (n,) int32}.
-        frames: {"time", "step", "position", "velocity", "pressure", "active"}.
+        frames: {"time", "step", "position", "velocity", "pressure", "active"},
+            and in runs of `jaxmps.run` the steps behind each frame: "dt_min",
+            "dt_max" (nan for the first frame) and "rejected".
         probes: {"time": (m,), name: (m, ...)}.
         state: the last full state's fields ({} if none was written).
         bodies: rigid-body fields per frame, {name: (t, b, ...)} ({} if none).
@@ -498,6 +514,7 @@ def load_state(path: str | os.PathLike, case: Any):
         if missing:
             raise ValueError(f"'{path}': /state lacks {missing}.")
         values = {k: group[k][()] for k in STATE_FIELDS}
+        values.update({k: group[k][()] for k in LATER_STATE_FIELDS if k in group})
         sub_values = {
             model: {k: v[()] for k, v in group[model].items()}
             for model in case.scene.body_fields
@@ -517,6 +534,9 @@ def load_state(path: str | os.PathLike, case: Any):
         name: cast(f"/state/{name}", values[name], getattr(case.state, name))
         for name in STATE_FIELDS[:-1]
     }
+    for name in LATER_STATE_FIELDS:
+        like = getattr(case.state, name)
+        fields[name] = cast(f"/state/{name}", values.get(name, 0.0), like)
     for model in case.scene.body_fields:
         like = getattr(case.state, model)
         stored = sub_values.get(model)

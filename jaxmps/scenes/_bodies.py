@@ -234,8 +234,8 @@ def friction_tilt(**overrides) -> Case:
     length = whole(c["floor_length"], l0)
     if length < a + 2 * l0:
         raise ValueError("floor_length must exceed block_size by at least 2 spacings.")
-    if c["dt"] is None:
-        c = {**c, "dt": 0.002 * l0 / 0.1}
+    if c["dt"] == "adaptive" and c["dt_max"] is None:
+        c = {**c, "dt_max": 0.002 * l0 / 0.1}
     x0 = whole(min(0.5, 0.1 * length), l0)
     across = [a + 4 * l0] if dim == 3 else []
     lower_box = [x0] + ([2 * l0] if dim == 3 else []) + [0.0]
@@ -258,8 +258,7 @@ def friction_tilt(**overrides) -> Case:
         None,
     )
     if c["settle"] > 0:
-        steps = max(1, round(c["settle"] / float(params.dt)))
-        state = simulate(scene, params, state, n_steps=steps, save_every=steps).state
+        state = simulate(scene, params, state, times=[c["settle"]]).state
         state = eqx.tree_at(
             lambda s: (s.time, s.step),
             state,
@@ -312,13 +311,13 @@ def block_impact(**overrides) -> Case:
     l0, dim = c["spacing"], int(c["dim"])
     a = whole(c["block_size"], l0)
     gap = whole(c["gap"], l0) if c["gap"] > 0 else 0.0
-    if c["dt"] is None:
+    if c["dt"] == "adaptive" and c["dt_max"] is None:
         if not c["velocity"] != 0:
             raise ValueError(
-                "velocity=0 leaves no velocity scale to derive the time step from; "
-                "give `dt` (seconds) as well, or a non-zero `velocity`."
+                "velocity=0 leaves no velocity scale to derive the largest time step "
+                "from; give `dt_max` (seconds) as well, or a non-zero `velocity`."
             )
-        c = {**c, "dt": 0.005 * l0 / abs(c["velocity"])}
+        c = {**c, "dt_max": 0.005 * l0 / abs(c["velocity"])}
     side = whole(0.5 * a, l0)
     length = a + 2 * side
     across = [length] if dim == 3 else []

@@ -8,6 +8,7 @@ import numpy as np
 
 from .. import geometry, schemes
 from .._build import make_params, make_scene, make_state
+from .._stepping import Adaptive
 from .._types import Kind
 from ..fluid import Jacobi, Multigrid, SemiImplicit
 
@@ -35,7 +36,9 @@ def _preconditioner_name(preconditioner) -> str:
 COMMON = {
     "solver": "semi_implicit",
     "scheme": "standard",
-    "dt": None,
+    "dt": "adaptive",
+    "dt_max": None,
+    "dt_min": None,
     "viscosity": _default(make_params, "viscosity"),
     "density": _default(make_params, "density"),
     "gravity": _default(make_params, "gravity"),
@@ -55,7 +58,10 @@ def _renamed(overrides: dict[str, Any]) -> dict[str, Any]:
     """Settings of earlier versions: `cell_capacity` (particles per cell) became
     `candidate_capacity` (particles in a particle's stencil cells). Run files of
     earlier versions store it as None (the default), which is dropped; a value has
-    no equivalent and is refused with the new name."""
+    no equivalent and is refused with the new name. `dt=None` (a fixed step from
+    the Courant rule) became `dt="adaptive"`."""
+    if overrides.get("dt", "") is None:
+        overrides = {**overrides, "dt": "adaptive"}
     if "cell_capacity" not in overrides:
         return overrides
     overrides = dict(overrides)
@@ -172,6 +178,8 @@ _ANGLE = Range(-90, 90, open_low=True, open_high=True)
 RULES = {
     # common settings
     "dt": _POSITIVE,
+    "dt_max": _POSITIVE,
+    "dt_min": _POSITIVE,
     "viscosity": _NON_NEGATIVE,
     "density": _POSITIVE,
     "gravity": _NON_NEGATIVE,
@@ -261,7 +269,10 @@ def _check_type(scene: str, key: str, default: Any, value: Any) -> None:
     number = isinstance(value, (int, float, np.integer, np.floating)) and not (
         isinstance(value, (bool, np.bool_))
     )
-    if isinstance(default, bool):
+    if key == "dt":
+        ok = number or value == "adaptive"
+        want = "'adaptive' or a number of seconds"
+    elif isinstance(default, bool):
         ok, want = isinstance(value, (bool, np.bool_)), "true or false"
     elif isinstance(default, str):
         ok, want = isinstance(value, str), "a word"
@@ -282,15 +293,39 @@ def _check_type(scene: str, key: str, default: Any, value: Any) -> None:
 
 
 def default_dt(config: dict, velocity_scale: float) -> float:
-    """dt = courant * l0 / U for the scene's velocity scale U (if dt not given); for
-    the explicit solver also at most 2 courant l0 / c (c dt / l0 = 0.4 by default, as
-    in seed 002)."""
-    if config["dt"] is not None:
+    """`Params.dt`: the `dt` setting when it is a number of seconds (fixed steps);
+    under adaptive steps the largest step, the `dt_max` setting or else
+    courant * l0 / U for the scene's velocity scale U, for the explicit solver
+    also at most 2 courant l0 / c (c dt / l0 = 0.4 by default, as in seed 002):
+    the step a calm flow takes, shortened by the flow's own limits when it is not
+    (`jaxmps.Adaptive`)."""
+    if config["dt"] != "adaptive":
+        bounds = [k for k in ("dt_max", "dt_min") if config[k] is not None]
+        if bounds:
+            raise ValueError(
+                f"{' and '.join(bounds)} bound adaptive steps, but dt={config['dt']:g} "
+                "s fixes the step; give dt='adaptive' (the default) or drop "
+                f"{' and '.join(bounds)}."
+            )
         return float(config["dt"])
+    dt = _largest_step(config, velocity_scale)
+    if config["dt_min"] is not None and not config["dt_min"] < dt:
+        raise ValueError(
+            f"dt_min={config['dt_min']:g} s must be below the largest step "
+            f"{dt:.4g} s (the `dt_max` setting, or the scene's own); lower `dt_min`."
+        )
+    return dt
+
+
+def _largest_step(config: dict, velocity_scale: float) -> float:
+    """The `dt_max` setting, or the Courant rule for the scene's velocity scale."""
+    if config["dt_max"] is not None:
+        return float(config["dt_max"])
     if not velocity_scale > 0:
         raise ValueError(
             f"gravity={config['gravity']!r} leaves no velocity scale to derive the "
-            "time step from; give `dt` (seconds) as well, or a positive `gravity`."
+            "largest time step from; give `dt_max` (seconds) as well, or a "
+            "positive `gravity`."
         )
     dt = config["courant"] * config["spacing"] / velocity_scale
     if config["solver"] == "explicit":
@@ -320,13 +355,21 @@ def boundary_layers(config: dict) -> int:
     return geometry.layers_for(discretisation(config).r_e)
 
 
+def time_stepping(config: dict) -> Adaptive | None:
+    """`Scene.time_step` of the `dt` setting: adaptive steps at the `courant`
+    setting (bounded below by `dt_min`), or None for a fixed `dt` in seconds."""
+    if config["dt"] != "adaptive":
+        return None
+    return Adaptive(courant=config["courant"], dt_min=config["dt_min"])
+
+
 def case_scene(
     config: dict, position, domain, *, candidate_capacity=None, capacity=None
 ):
     """The Scene of a built-in case: the discretisation of the `solver` and `scheme`
     settings, the `max_neighbours` / `candidate_capacity` settings
     (`candidate_capacity` here is the scene's own default when the setting is
-    None)."""
+    None), adaptive or fixed steps by the `dt` setting."""
     setting = config["candidate_capacity"]
     return make_scene(
         position,
@@ -336,6 +379,7 @@ def case_scene(
         max_neighbours=config["max_neighbours"],
         candidate_capacity=candidate_capacity if setting is None else setting,
         scheme=discretisation(config),
+        time_step=time_stepping(config),
     )
 
 

@@ -1,0 +1,66 @@
+"""Adaptive time steps: their settings (the limits: `_step.time_step_limits`)."""
+
+import math
+
+import equinox as eqx
+import jax.numpy as jnp
+
+from ._params import Params
+from ._types import Scalar
+
+
+class Adaptive(eqx.Module):
+    """Choose every step's dt from the state (`Scene.time_step`).
+
+    A step takes the smallest of these limits, each a safety factor times a
+    stability or accuracy bound, and never more than `Params.dt` (which, under
+    adaptive stepping, is the largest step `dt_max`):
+
+        courant    courant l0 / max|u|           (mobile particles, start of step)
+        force      force sqrt(l0 / max|a|)       (max|a| of the last step)
+        viscous    stability x viscous_limit lambda / (2 d nu)
+        solver     stability x the pressure stage's limit (explicit: sound_courant
+                   l0 / c; semi-implicit: none)
+        <body>     stability x each body model's limit (rigid bodies: none)
+
+    A step that still exceeds a stability limit or ends non-finite (a velocity
+    that jumped within one step, an impact) is taken again with half the dt; a dt
+    below `dt_min` ends the run with `Result.time_step_below_minimum`.
+
+    The dt is a constant to the gradient (`jax.lax.stop_gradient`): see
+    `jaxmps.time_step`.
+
+    Attributes:
+        courant: Courant number of the step (0.2, as MPS studies use: seed 000
+            takes 0.2, seed 002 0.1-0.2).
+        force: factor of the force limit (0.25, the usual SPH value, e.g.
+            Monaghan 1992).
+        stability: fraction of the hard stability limits (`Scene.viscous_limit`,
+            the explicit solver's `sound_courant`) a step may use; 0.5 gives the
+            explicit solver c dt / l0 = 0.4, the value seed 002 runs at.
+        dt_min: the smallest step [s] before the run is given up; None: 1e-3 x
+            `Params.dt`.
+    """
+
+    courant: float = 0.2
+    force: float = 0.25
+    stability: float = 0.5
+    dt_min: float | None = None
+
+    def __check_init__(self):
+        for name in ("courant", "force", "stability"):
+            value = getattr(self, name)
+            if not (isinstance(value, (int, float)) and 0 < value <= 1):
+                raise ValueError(f"Adaptive.{name} must be in (0, 1], got {value!r}.")
+        if self.dt_min is not None and not (
+            math.isfinite(self.dt_min) and self.dt_min > 0
+        ):
+            raise ValueError(
+                f"Adaptive.dt_min must be positive and finite [s], got {self.dt_min!r}."
+            )
+
+    def smallest(self, params: Params) -> Scalar:
+        """The smallest step a run may take [s]."""
+        if self.dt_min is None:
+            return 1e-3 * params.dt
+        return jnp.asarray(self.dt_min, params.dt.dtype)
