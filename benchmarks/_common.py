@@ -186,3 +186,15 @@ def time_compiled(lower, *args, repeats: int = 3, max_timed_s=math.inf, **kwargs
         warmup_s=warmup_s,
         run_s_all=times,
     )
+
+
+def fixed_steps(case):
+    """`case` stepping by its `Params.dt` every step (its scene's largest step):
+    the per-step cost the throughput scripts measure, comparable with the peers'
+    fixed steps and with results before adaptive steps were the default
+    (`adaptive_steps.py` measures adaptive steps)."""
+    import equinox as eqx
+
+    return eqx.tree_at(
+        lambda c: c.scene.time_step, case, None, is_leaf=lambda x: x is None
+    )

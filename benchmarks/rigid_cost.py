@@ -13,7 +13,7 @@ import json
 import pathlib
 
 import jax.numpy as jnp
-from _common import loadavg, machine_info, time_compiled
+from _common import fixed_steps, loadavg, machine_info, time_compiled
 
 import jaxmps
 
@@ -48,9 +48,9 @@ def measure(scene, params, state, n_steps):
 def main():
     rows = []
     cases = {
-        "floating_box": jaxmps.scenes.floating_box(),
-        "block_impact": jaxmps.scenes.block_impact(),
-        "friction_tilt": jaxmps.scenes.friction_tilt(settle=0.0),
+        "floating_box": fixed_steps(jaxmps.scenes.floating_box()),
+        "block_impact": fixed_steps(jaxmps.scenes.block_impact()),
+        "friction_tilt": fixed_steps(jaxmps.scenes.friction_tilt(settle=0.0)),
     }
     n_steps = 200
     for name, case in cases.items():

@@ -43,13 +43,13 @@ def spacing_for(target: int, dim: int, solver: str) -> float:
 
 
 def measure(solver: str, target: int, steps: int, dim: int = 2) -> dict:
-    from _common import time_compiled
+    from _common import fixed_steps, time_compiled
     from step_throughput import observe_time
 
     import jaxmps
 
     spacing = spacing_for(target, dim, solver)
-    case = jaxmps.scenes.dam_break(spacing=spacing, solver=solver, dim=dim)
+    case = fixed_steps(jaxmps.scenes.dam_break(spacing=spacing, solver=solver, dim=dim))
     scene, params = case.scene, case.params
     state = jaxmps.simulate(scene, params, case.state, 20, 20, throw=False).state
     args = (scene, params, state, steps, steps, observe_time)

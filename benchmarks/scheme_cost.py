@@ -20,7 +20,7 @@ import pathlib
 
 import equinox as eqx
 import numpy as np
-from _common import loadavg, machine_info, time_compiled
+from _common import fixed_steps, loadavg, machine_info, time_compiled
 
 import jaxmps
 
@@ -64,8 +64,10 @@ def measure(scene, params, state, n_steps, save_every, observe):
 
 
 def main():
-    case = jaxmps.scenes.hydrostatic(
-        spacing=0.01, width=0.2, depth=0.2, scheme="high_accuracy"
+    case = fixed_steps(
+        jaxmps.scenes.hydrostatic(
+            spacing=0.01, width=0.2, depth=0.2, scheme="high_accuracy"
+        )
     )
     params, state = case.params, case.state
     dt = float(params.dt)

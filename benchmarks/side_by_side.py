@@ -127,12 +127,12 @@ def jaxmps_worker(
 
     jax.config.update("jax_enable_x64", dtype == "float64")
     import jax.numpy as jnp
-    from _common import loadavg, time_compiled
+    from _common import fixed_steps, loadavg, time_compiled
     from step_throughput import _memory_analysis_mib, _rss_mib, observe_time
 
     import jaxmps
 
-    case = jaxmps.scenes.dam_break(spacing=spacing, solver=solver)
+    case = fixed_steps(jaxmps.scenes.dam_break(spacing=spacing, solver=solver))
     scene, params, state = case.scene, case.params, case.state
     jax.block_until_ready((params, state))
     n_fluid = int(jnp.sum(state.kind == int(jaxmps.Kind.FLUID)))

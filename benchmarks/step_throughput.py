@@ -41,8 +41,8 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
+from _common import fixed_steps, machine_info, time_compiled
 from _common import loadavg as _loadavg
-from _common import machine_info, time_compiled
 
 import jaxmps
 
@@ -132,7 +132,7 @@ def iteration_stats(scene, params, state, n_steps: int):
 
 
 def throughput_case(spacing: float, n_steps: int, repeats: int) -> dict:
-    case = jaxmps.scenes.dam_break(spacing=spacing)
+    case = fixed_steps(jaxmps.scenes.dam_break(spacing=spacing))
     scene, params, state = case.scene, case.params, case.state
     jax.block_until_ready((params, state))
     n_fluid = int(jnp.sum(state.kind == int(jaxmps.Kind.FLUID)))
@@ -193,7 +193,7 @@ gradient_fn = eqx.filter_jit(eqx.filter_grad(fluid_mean_x))
 
 
 def gradient_case(spacing: float, n_steps: int, repeats: int) -> dict:
-    case = jaxmps.scenes.dam_break(spacing=spacing)
+    case = fixed_steps(jaxmps.scenes.dam_break(spacing=spacing))
     scene, params, state = case.scene, case.params, case.state
     save_every = max(1, int(round(np.sqrt(n_steps))))
     while n_steps % save_every:

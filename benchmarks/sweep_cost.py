@@ -14,7 +14,7 @@ import pathlib
 
 import jax.numpy as jnp
 import numpy as np
-from _common import time_compiled
+from _common import fixed_steps, time_compiled
 
 import jaxmps
 
@@ -22,7 +22,7 @@ HERE = pathlib.Path(__file__).parent
 
 
 def main():
-    case = jaxmps.scenes.dam_break(spacing=0.0146)
+    case = fixed_steps(jaxmps.scenes.dam_break(spacing=0.0146))
     obs = jaxmps.scenes.observe_probes(case.probes)
     n_steps = 160
     args = (case.scene, case.params, case.state, n_steps, 20, obs)

@@ -37,6 +37,7 @@ def make_scene(
     courant_limit: float = 0.5,
     viscous_limit: float = 1.0,
     time_step: Adaptive | None = None,
+    escape_limit: int = 0,
 ) -> Scene:
     """Build a Scene for the initial particle positions.
 
@@ -64,6 +65,8 @@ def make_scene(
             1 % of the steps beyond 0.06 l0) in the 2-D dam break at l0 = 7.3 mm.
         courant_limit, viscous_limit: stability limits checked every step (see
             `Scene`); `viscous_limit=math.inf` switches the viscous check off.
+        escape_limit: fluid particles that may leave the domain and be taken
+            out of the run (`Scene.escape_limit`); 0 ends the run at the first.
         time_step: None (the default) steps by `Params.dt`; `jaxmps.Adaptive()`
             chooses each step's dt from the flow, at most `Params.dt` (the built-in
             scenes do, unless given `dt` in seconds).
@@ -112,6 +115,7 @@ def make_scene(
         collision=scheme.collision,
         stabiliser=scheme.stabiliser,
         time_step=time_step,
+        escape_limit=int(escape_limit),
     )
 
 
@@ -240,6 +244,7 @@ def make_state(
         step=jnp.asarray(0, jnp.int32),
         dt=jnp.asarray(0.0, dtype),
         acceleration=jnp.asarray(0.0, dtype),
+        escaped=jnp.asarray(0, jnp.int32),
         position=jnp.asarray(pos, dtype),
         velocity=jnp.asarray(vel, dtype),
         pressure=jnp.asarray(prs, dtype),

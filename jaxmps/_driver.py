@@ -7,6 +7,7 @@ import os
 import signal
 import threading
 import time as _time
+import warnings
 from pathlib import Path
 from typing import Any
 
@@ -518,6 +519,14 @@ def run(
                 writer.close()
                 if out is not None and writer.path != out:
                     writer.path.unlink(missing_ok=True)
+    escaped = int(np.asarray(state.escaped))
+    if escaped:
+        warnings.warn(
+            f"{escaped} fluid particle(s) of '{case.name}' left the domain (spray, "
+            "water over a wall) and were taken out of the run (`State.escaped`; "
+            f"the run ends beyond `escape_limit` = {case.scene.escape_limit}).",
+            stacklevel=2,
+        )
     return RunResult(
         state=state,
         probes=_gather(rows),

@@ -32,9 +32,11 @@ class Result(eqx.Enumeration):
         "(the run was likely unstable), or run in float64 (`--x64`)."
     )
     left_domain = (
-        "A particle left the domain box `Scene.grid` (it was kept in the neighbour "
-        "search, clamped to the boundary cells). Enlarge the domain (scene override "
-        "`domain_margin=...`) or find why it escaped (splash over a wall, instability)."
+        "A particle left the domain box `Scene.grid`: a body or wall particle, or "
+        "more fluid particles than `Scene.escape_limit` (spray taken out of the "
+        "run, counted in `State.escaped`). Enlarge the domain (scene override "
+        "`domain_margin=...`), allow more spray (`escape_limit=...`), or find why "
+        "it escaped (splash over a wall, instability)."
     )
     pool_exhausted = (
         "The inflow needed more inactive particles than the pool holds. Raise the "

@@ -58,6 +58,10 @@ class Scene(eqx.Module):
         outflow: optional outflow plane returning fluid to the pool.
         motion: optional prescribed motion of wall particles (piston, shaken tank).
         rigid: optional rigid bodies (with contact and friction).
+        escape_limit: how many fluid particles may leave the domain box (spray
+            over an open tank) and be taken out of the run, counted in
+            `State.escaped`, before the run ends with `Result.left_domain`; 0
+            (`make_scene`'s default) ends it at the first.
         time_step: how each step's dt is chosen: None takes `Params.dt` every
             step; `Adaptive()` takes the flow's own limits, at most `Params.dt`.
         body_fields: the fields that hold body models (`AbstractBodyModel`), in the
@@ -90,6 +94,7 @@ class Scene(eqx.Module):
     motion: PrescribedMotion | None = None
     rigid: RigidBodies | None = None
     time_step: Adaptive | None = None
+    escape_limit: int = 0
 
     @property
     def body_models(self) -> tuple[AbstractBodyModel, ...]:

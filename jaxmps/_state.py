@@ -61,6 +61,8 @@ class State(eqx.Module):
         acceleration: the largest |du/dt| of a fluid or body particle over the
             last step [m/s^2] (0 before the first); adaptive steps read it
             (`jaxmps.Adaptive`, the force limit).
+        escaped: fluid particles that left the domain box and were taken out of
+            the run (made inactive), up to `Scene.escape_limit`.
         position: particle positions [m], shape (n, d).
         velocity: particle velocities [m/s], shape (n, d).
         pressure: particle pressures [Pa] (gauge; 0 on the free surface), shape (n,).
@@ -81,6 +83,7 @@ class State(eqx.Module):
     step: Int[Array, ""]
     dt: Float[Array, ""]
     acceleration: Float[Array, ""]
+    escaped: Int[Array, ""]
     position: Float[Array, "n d"]
     velocity: Float[Array, "n d"]
     pressure: Float[Array, " n"]

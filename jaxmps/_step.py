@@ -40,7 +40,7 @@ from ._params import Params
 from ._result import Result, StepInfo, update_result
 from ._scene import Scene
 from ._state import State
-from ._types import Field, Mask, Positions, Scalar, Velocities
+from ._types import Field, Kind, Mask, Positions, Scalar, Velocities
 
 
 def _step(
@@ -60,6 +60,7 @@ def _step(
         )
     with jax.named_scope("predict"):
         u_star = fluid.predict(disc, scene.laplacian, params, state, pairs_k, coupling)
+    u_forced = u_star
     if scene.collision is not None:
         with jax.named_scope("collide"):
             u_star = scene.collision(disc, u_star, kind, active, pairs_k)
@@ -103,8 +104,16 @@ def _step(
 
     with jax.named_scope("result"):
         info = _info(solution, nbrs_k, nbrs)
+        new, info = _take_out_escaped(scene, new, info, nbrs_k.outside | nbrs.outside)
+        forced = new.velocity if scene.solver.pressure_is_force else u_forced
         new = _record(
-            scene, params, new, info, pool_short, mobile & new.active, state.velocity
+            scene,
+            params,
+            new,
+            info,
+            pool_short,
+            mobile & new.active,
+            (forced - state.velocity) / params.dt,
         )
     return new, info
 
@@ -239,6 +248,34 @@ def _info(
     )
 
 
+def _take_out_escaped(
+    scene: Scene, state: State, info: StepInfo, outside: Mask
+) -> tuple[State, StepInfo]:
+    """Take the fluid particles `outside` the domain box out of the run (made
+    inactive, parked at the grid's origin as the pool is, counted in
+    `State.escaped`) while no more than `Scene.escape_limit` have escaped; the
+    step's `outside` then flags what is left: any other particle outside, or a
+    count beyond the limit. Non-finite positions are never taken out (they are
+    `Result.nonfinite_state`)."""
+    if scene.escape_limit <= 0:
+        return state, info
+    finite = jnp.all(jnp.isfinite(state.position), axis=-1)
+    fluid = state.kind == int(Kind.FLUID)
+    leaving = outside & state.active & fluid & finite
+    escaped = state.escaped + jnp.sum(leaving, dtype=state.escaped.dtype)
+    origin = jnp.asarray(scene.grid.origin, state.position.dtype)
+    state = dataclasses.replace(
+        state,
+        active=state.active & ~leaving,
+        position=jnp.where(leaving[:, None], origin, state.position),
+        velocity=jnp.where(leaving[:, None], 0.0, state.velocity),
+        pressure=jnp.where(leaving, 0.0, state.pressure),
+        escaped=escaped,
+    )
+    still = jnp.any(outside & ~leaving & state.active) | (escaped > scene.escape_limit)
+    return state, eqx.tree_at(lambda i: i.outside, info, still)
+
+
 def _record(
     scene: Scene,
     params: Params,
@@ -246,20 +283,20 @@ def _record(
     info: StepInfo,
     pool_short: Bool[Array, ""],
     mobile: Mask,
-    velocity_k: Velocities,
+    forced: Float[Array, "n d"],
 ) -> State:
     """Record the step's first failure in the state's result: overflows, an empty
     pool, a particle out of the domain, a step beyond a stability limit (over the
     `mobile` particles), an unconverged pressure solve, a non-finite state; and
-    the step's largest acceleration (from the velocities at its start,
-    `velocity_k`)."""
+    the step's largest acceleration by forces (`forced`: gravity and viscosity,
+    and the pressure where it is a force, `AbstractPressureSolver.pressure_is_force`)."""
     speed = jnp.sqrt(jnp.sum(new.velocity**2, axis=-1))
     courant = jnp.max(jnp.where(mobile, speed, 0.0)) * params.dt / scene.spacing
     # A diagnostic of the dt choice, which is a constant to the gradient (and the
     # norm's derivative at a particle at rest is not finite).
-    change = jax.lax.stop_gradient(new.velocity - velocity_k)
-    change = jnp.sqrt(jnp.sum(change**2, axis=-1))
-    acceleration = jnp.max(jnp.where(mobile, change, 0.0), initial=0.0) / params.dt
+    forced = jax.lax.stop_gradient(forced)
+    forced = jnp.sqrt(jnp.sum(forced**2, axis=-1))
+    acceleration = jnp.max(jnp.where(mobile, forced, 0.0), initial=0.0)
     viscous = 2 * scene.dim * params.viscosity * params.dt / scene.lam
     finite = jnp.all(
         jnp.where(

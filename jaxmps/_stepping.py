@@ -17,7 +17,9 @@ class Adaptive(eqx.Module):
     adaptive stepping, is the largest step `dt_max`):
 
         courant    courant l0 / max|u|           (mobile particles, start of step)
-        force      force sqrt(l0 / max|a|)       (max|a| of the last step)
+        force      force sqrt(l0 / max|a|)       (max|a| by forces in the last
+                                                 step: gravity, viscosity, and
+                                                 the explicit solver's pressure)
         viscous    stability x viscous_limit lambda / (2 d nu)
         solver     stability x the pressure stage's limit (explicit: sound_courant
                    l0 / c; semi-implicit: none)
@@ -31,8 +33,13 @@ class Adaptive(eqx.Module):
     `jaxmps.time_step`.
 
     Attributes:
-        courant: Courant number of the step (0.2, as MPS studies use: seed 000
-            takes 0.2, seed 002 0.1-0.2).
+        courant: Courant number of the step on the flow's largest speed. 0.1:
+            MPS studies take 0.1-0.2 (seed 000 0.2, seed 002 0.1-0.2), and a
+            semi-implicit dam break of a 0.6 m x 0.3 m column at l0 = 1 cm
+            blew up after its impacts at 0.2 (velocities of 80 m/s at 1.19 s:
+            the pressure spikes of a squeezed particle grow as the step
+            shrinks) and ran to 2 s at 0.1 and 0.05
+            (`benchmarks/adaptive_steps.py`).
         force: factor of the force limit (0.25, the usual SPH value, e.g.
             Monaghan 1992).
         stability: fraction of the hard stability limits (`Scene.viscous_limit`,
@@ -42,7 +49,7 @@ class Adaptive(eqx.Module):
             `Params.dt`.
     """
 
-    courant: float = 0.2
+    courant: float = 0.1
     force: float = 0.25
     stability: float = 0.5
     dt_min: float | None = None

@@ -4,6 +4,7 @@ import argparse
 import json
 import math
 import sys
+import warnings
 from pathlib import Path
 
 
@@ -115,16 +116,19 @@ def _cmd_run(args) -> int:
         + (f" (restart from {source})" if restart else "")
     )
     try:
-        result = run(
-            case,
-            t_end=args.t_end,
-            out=out,
-            save_every=args.save_every,
-            progress=not args.quiet,
-            restart_from=source,
-            overwrite=args.overwrite,
-            max_steps_per_save=args.max_steps_per_save,
-        )
+        with warnings.catch_warnings():
+            # The escaped particles are reported below, in the CLI's words.
+            warnings.filterwarnings("ignore", message=".*left the domain")
+            result = run(
+                case,
+                t_end=args.t_end,
+                out=out,
+                save_every=args.save_every,
+                progress=not args.quiet,
+                restart_from=source,
+                overwrite=args.overwrite,
+                max_steps_per_save=args.max_steps_per_save,
+            )
     except RuntimeError as e:
         print(f"jaxmps run: {e}", file=sys.stderr)
         print(f"Wrote what was computed to {out} and {out.with_suffix('.xdmf')}")
@@ -137,6 +141,13 @@ def _cmd_run(args) -> int:
             file=sys.stderr,
         )
         return 128 + signum
+    escaped = int(result.state.escaped)
+    if escaped:
+        print(
+            f"{escaped} fluid particle(s) left the domain (spray, water over a "
+            f"wall) and were taken out of the run (limit {case.scene.escape_limit}: "
+            "the `escape_limit` setting)."
+        )
     print(
         f"Done: {result.n_steps} steps in {result.wall_time:.1f} s "
         f"(t = {float(result.state.time):.4g} s)."
@@ -206,9 +217,11 @@ def _describe(data) -> int:
 
         value = int(data.state["result"])
         status = "successful" if value == 0 else Result[result_from_code(value)]
+        escaped = int(data.state.get("escaped", 0))
         print(
             f"  state    t = {float(data.state['time']):.4g} s, step "
             f"{int(data.state['step'])}, result: {status}"
+            + (f", {escaped} fluid particles left the domain" if escaped else "")
         )
     print(f"  config   {json.dumps(data.config, sort_keys=True)}")
     return 0

@@ -1,6 +1,8 @@
 """The edges of the safe region: accurate just inside a stability limit, a clear
 error just past it, nothing lost when a run stops, and bad input refused by name."""
 
+import math
+
 import equinox as eqx
 import jax
 import jax.numpy as jnp
@@ -110,13 +112,15 @@ def test_pressure_solve_that_cannot_converge_ends_the_run_clearly(tmp_path):
 # ------------------------------------------------------------ nothing lost
 
 
-def _escaping(domain_margin=None):
+def _escaping(domain_margin=None, escape_limit=0):
     """The tank with one surface particle thrown upwards at 2.5 m/s: it leaves the
     domain (the grid box, top at 0.377 m: whole cells of (r_e + skin) / 2) at
     t ~ 0.1 s, between steps 20 and 25, unless the domain is taller. Fixed steps of
     the scene's largest step, to count them."""
     dt = float(jaxmps.scenes.hydrostatic(spacing=0.04).params.dt)
-    case = jaxmps.scenes.hydrostatic(spacing=0.04, domain_margin=domain_margin, dt=dt)
+    case = jaxmps.scenes.hydrostatic(
+        spacing=0.04, domain_margin=domain_margin, dt=dt, escape_limit=escape_limit
+    )
     fluid = np.nonzero(np.asarray(case.state.kind) == int(jaxmps.Kind.FLUID))[0]
     top = int(fluid[np.argmax(np.asarray(case.state.position)[fluid, 1])])
     velocity = case.state.velocity.at[top].set(jnp.array([0.0, 2.5]))
@@ -154,6 +158,30 @@ def test_failed_run_keeps_frames_and_last_good_state_and_restarts(tmp_path):
     assert np.all(np.diff(steps) > 0) and steps[5] == 25 and steps[-1] == 75
     np.testing.assert_allclose(frames["dt_max"][-1], dt, rtol=1e-9)
     np.testing.assert_allclose(frames["dt_min"][-1], 0.64 * dt, rtol=0.01)
+
+
+def test_spray_within_the_escape_limit_is_taken_out_and_counted():
+    case = _escaping(escape_limit=1)
+    top = int(np.argmax(np.asarray(case.state.velocity)[:, 1]))
+    tr = jaxmps.simulate(case.scene, case.params, case.state, times=[0.3])
+    assert tr.result == jaxmps.Result.successful
+    assert int(tr.state.escaped) == 1 and not bool(tr.state.active[top])
+    n_active = int(np.sum(np.asarray(case.state.active)))
+    assert int(np.sum(np.asarray(tr.state.active))) == n_active - 1
+    # The same spray with another particle thrown out: beyond the limit.
+    second = int(np.nonzero(np.asarray(case.state.kind) == 0)[0][-2])
+    two = eqx.tree_at(
+        lambda c: c.state.velocity,
+        case,
+        case.state.velocity.at[second].set(jnp.array([0.0, 2.5])),
+    )
+    tr = jaxmps.simulate(two.scene, two.params, two.state, times=[0.3], throw=False)
+    assert tr.result == jaxmps.Result.left_domain
+    assert "escape_limit" in jaxmps.Result[tr.result]
+    # Scenes allow a tenth of their fluid by default.
+    default = jaxmps.scenes.hydrostatic(spacing=0.04)
+    fluid = int(np.sum(np.asarray(default.state.kind) == 0))
+    assert default.scene.escape_limit == math.ceil(0.1 * fluid)
 
 
 def test_cli_restart_with_a_changed_time_step(tmp_path, capsys):

@@ -37,6 +37,7 @@ class Explicit(AbstractPressureSolver):
     """
 
     needs_surface: ClassVar[bool] = False
+    pressure_is_force: ClassVar[bool] = True
     sound_courant: float = 0.8
     check_time_step: bool = True
 

@@ -36,6 +36,7 @@ class SemiImplicit(AbstractPressureSolver):
     """
 
     needs_surface: ClassVar[bool] = True
+    pressure_is_force: ClassVar[bool] = False
     rtol: float | None = None
     atol: float = 1e-12
     max_iterations: int = 2000

@@ -67,9 +67,15 @@ class AbstractPressureSolver(eqx.Module):
     Attributes:
         needs_surface: whether the stage needs free-surface flags (a Scene with
             this solver must have a `FreeSurface` model).
+        pressure_is_force: whether the pressure acts as a force of the state (an
+            equation of state), so that its acceleration bounds the step like
+            gravity's; False for a projection, whose correction of the velocity
+            grows as 1/dt and would shorten each step further than the last
+            (`jaxmps.Adaptive`, the force limit).
     """
 
     needs_surface: eqx.AbstractClassVar[bool]
+    pressure_is_force: eqx.AbstractClassVar[bool]
 
     @abc.abstractmethod
     def __call__(

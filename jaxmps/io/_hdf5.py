@@ -31,7 +31,7 @@ STATE_FIELDS = (
     "result",
 )
 # /state fields run files of earlier versions lack (read as 0 from those).
-LATER_STATE_FIELDS = ("dt", "acceleration")
+LATER_STATE_FIELDS = ("dt", "acceleration", "escaped")
 FRAME_FIELDS = ("time", "step", "position", "velocity", "pressure", "active")
 
 

@@ -65,6 +65,7 @@ def _body_case(config, fluid, box, walls, wall_kind, domain, speed, orientation)
         config,
         position,
         domain,
+        kind,
         candidate_capacity=math.ceil(1.5 * (stencil_box + 1.0) ** dim),
     )
     params = case_params(config, dim, speed)

@@ -49,8 +49,9 @@ COMMON = {
     "preconditioner": _preconditioner_name(SemiImplicit.preconditioner),
     "max_neighbours": None,
     "candidate_capacity": None,
-    "courant": 0.2,
+    "courant": Adaptive.courant,
     "domain_margin": None,
+    "escape_limit": None,
 }
 
 
@@ -191,6 +192,7 @@ RULES = {
     "candidate_capacity": _COUNT,
     "courant": Range(0, 1, open_low=True),
     "domain_margin": _OFFSET,
+    "escape_limit": Range(0, 2**31 - 1),
     # lengths [m]
     "spacing": _LENGTH,
     "width": _LENGTH,
@@ -252,7 +254,14 @@ def _check_range(scene: str, key: str, value: Any) -> None:
 
 
 # Parameters counted in whole numbers (None: derived).
-_WHOLE = ("dim", "max_iterations", "max_neighbours", "candidate_capacity", "pool")
+_WHOLE = (
+    "dim",
+    "max_iterations",
+    "max_neighbours",
+    "candidate_capacity",
+    "pool",
+    "escape_limit",
+)
 
 
 def _whole(value) -> bool:
@@ -292,13 +301,18 @@ def _check_type(scene: str, key: str, default: Any, value: Any) -> None:
         )
 
 
+# The Courant number of the largest step on the scene's velocity scale: the step
+# seed 000 takes (0.2 l0 / sqrt(2 g H)); a calm flow takes it, a violent one less.
+CALM_COURANT = 0.2
+
+
 def default_dt(config: dict, velocity_scale: float) -> float:
     """`Params.dt`: the `dt` setting when it is a number of seconds (fixed steps);
     under adaptive steps the largest step, the `dt_max` setting or else
-    courant * l0 / U for the scene's velocity scale U, for the explicit solver
-    also at most 2 courant l0 / c (c dt / l0 = 0.4 by default, as in seed 002):
-    the step a calm flow takes, shortened by the flow's own limits when it is not
-    (`jaxmps.Adaptive`)."""
+    `CALM_COURANT` l0 / U for the scene's velocity scale U, for the explicit
+    solver also at most 0.4 l0 / c (as in seed 002): the step a calm flow takes,
+    shortened by the flow's own limits when it is not (`jaxmps.Adaptive`, with
+    the `courant` setting on the flow's largest speed)."""
     if config["dt"] != "adaptive":
         bounds = [k for k in ("dt_max", "dt_min") if config[k] is not None]
         if bounds:
@@ -327,9 +341,9 @@ def _largest_step(config: dict, velocity_scale: float) -> float:
             "largest time step from; give `dt_max` (seconds) as well, or a "
             "positive `gravity`."
         )
-    dt = config["courant"] * config["spacing"] / velocity_scale
+    dt = CALM_COURANT * config["spacing"] / velocity_scale
     if config["solver"] == "explicit":
-        dt = min(dt, 2 * config["courant"] * config["spacing"] / config["sound_speed"])
+        dt = min(dt, 0.4 * config["spacing"] / config["sound_speed"])
     return float(dt)
 
 
@@ -363,13 +377,23 @@ def time_stepping(config: dict) -> Adaptive | None:
     return Adaptive(courant=config["courant"], dt_min=config["dt_min"])
 
 
+# The share of a scene's fluid particles that may leave the domain (spray, water
+# over a wall) before a run ends, unless the `escape_limit` setting says.
+ESCAPE_SHARE = 0.1
+
+
 def case_scene(
-    config: dict, position, domain, *, candidate_capacity=None, capacity=None
+    config: dict, position, domain, kind, *, candidate_capacity=None, capacity=None
 ):
     """The Scene of a built-in case: the discretisation of the `solver` and `scheme`
     settings, the `max_neighbours` / `candidate_capacity` settings
     (`candidate_capacity` here is the scene's own default when the setting is
-    None), adaptive or fixed steps by the `dt` setting."""
+    None), adaptive or fixed steps by the `dt` setting, and the `escape_limit`
+    setting (default: `ESCAPE_SHARE` of the fluid particles of `kind`)."""
+    escape = config["escape_limit"]
+    if escape is None:
+        fluid = int(np.sum(np.asarray(kind) == int(Kind.FLUID)))
+        escape = math.ceil(ESCAPE_SHARE * fluid)
     setting = config["candidate_capacity"]
     return make_scene(
         position,
@@ -380,6 +404,7 @@ def case_scene(
         candidate_capacity=candidate_capacity if setting is None else setting,
         scheme=discretisation(config),
         time_step=time_stepping(config),
+        escape_limit=escape,
     )
 
 
@@ -404,7 +429,7 @@ def tank_case(
     lower = np.asarray(tank_lower, float) - layers * l0 - 2 * l0
     upper = np.asarray(tank_upper, float) + layers * l0 + 2 * l0
     upper[-1] = tank_upper[-1] + margin
-    scene = case_scene(config, position, (lower, upper))
+    scene = case_scene(config, position, (lower, upper), kind)
     params = case_params(config, position.shape[1], velocity_scale)
     state = make_state(scene, position, kind)
     return scene, params, state, dict(walls=walls, wall_kind=wall_kind)

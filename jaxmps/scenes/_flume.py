@@ -101,7 +101,7 @@ def flume(**overrides) -> Case:
     capacity = len(position) + pool
     lower = np.array([-(layers + 3) * l0, -(layers + 2) * l0 - 0.2 * length])
     upper = np.array([length + (layers + 3) * l0, top])
-    scene = case_scene(c, position, (lower, upper), capacity=capacity)
+    scene = case_scene(c, position, (lower, upper), kind, capacity=capacity)
     # Choice: behind a weir the outflow plane is the weir's downstream face: water
     # that spills over the crest and runs down that face would otherwise fall
     # between the face and a plane further out and leave the domain through its

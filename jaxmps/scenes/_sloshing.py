@@ -114,7 +114,7 @@ def _assemble(c, fluid, walls, wall_kind, height, depth, motion=None):
     lower = position.min(axis=0) - (layers * l0 + travel)
     upper = position.max(axis=0) + layers * l0 + travel
     upper[-1] = height + 0.5 * height
-    scene = case_scene(c, position, (lower, upper))
+    scene = case_scene(c, position, (lower, upper), kind)
     # Velocity scale of the Courant rule: the long-wave speed sqrt(g H) (the wave
     # and sloshing motions stay well below the dam-break scale sqrt(2 g H)).
     params = case_params(c, 2, velocity_scale(0.5 * depth, c["gravity"]))

@@ -107,7 +107,7 @@ def wave_tank(**overrides) -> Case:
     period = float(c["wave_period"])
     lower = np.array([-travel - (layers + 3) * l0, -(layers + 2) * l0])
     upper = np.array([length + (layers + 3) * l0, height + depth])
-    scene = case_scene(c, position, (lower, upper))
+    scene = case_scene(c, position, (lower, upper), kind)
     motion = PrescribedMotion(
         particles=tuple(range(n_fluid, n_fluid + len(piston))),
         axis=(1.0, 0.0),
