@@ -124,12 +124,16 @@ def dam_break_scaled(scale: float, spacing: float, **settings):
 def runs_to_end(args) -> list[dict]:
     rows = []
     for scale in args.scales:
-        case = dam_break_scaled(scale, args.spacing)
+        settings = {} if args.courant is None else {"courant": args.courant}
+        case = dam_break_scaled(scale, args.spacing, **settings)
         record = rollout(case, args.t_end, args.save_every)
-        record.update(geometry=f"{scale:g}x", mode="adaptive")
+        courant = case.scene.time_step.courant
+        record.update(geometry=f"{scale:g}x", mode="adaptive", courant=courant)
         rows.append(record)
         _say(record)
         dt = float(case.params.dt)
+        if args.courant is not None:
+            continue  # the fixed steps do not depend on it
         for halving in range(args.max_halvings + 1):
             fixed = dam_break_scaled(scale, args.spacing, dt=dt / 2**halving)
             record = rollout(fixed, args.t_end, args.save_every)
@@ -160,7 +164,7 @@ def accuracy(args) -> list[dict]:
             spacing=l0, width=0.2, depth=0.2, **s
         ),
         "standing_wave": lambda **s: jaxmps.scenes.standing_wave(
-            spacing=l0, width=0.4, depth=0.2, amplitude=0.02, **s
+            spacing=l0, tank_length=0.4, depth=0.2, tank_height=0.3, amplitude=0.02, **s
         ),
     }
     ends = {"dam_break": 0.45, "hydrostatic": 1.0, "standing_wave": 1.6}
@@ -242,8 +246,9 @@ def markdown(data: dict) -> str:
         "|---|---|---|---|---|---|---|---|---|---|",
     ]
     for r in data["runs"]:
+        mode = r["mode"] + (f" C={r['courant']:g}" if r.get("courant") else "")
         lines.append(
-            f"| {r['geometry']} | {r['mode']} | {1e3 * r['dt']:.3f} | {r['result']} "
+            f"| {r['geometry']} | {mode} | {1e3 * r['dt']:.3f} | {r['result']} "
             f"| {r['reached_s']:.3f} | {r['steps']} | {r['rejected']} "
             f"| {r['wall_per_sim_s']:.1f} | {r['compile_s']:.1f} "
             f"| {', '.join(f'{k} {v}' for k, v in r.get('binding', {}).items())} |"
@@ -308,11 +313,22 @@ def plot(data: dict, path: Path) -> None:
     fig.savefig(path, dpi=120)
 
 
+def _merged(old: list, new: list, keys: tuple) -> list:
+    """`old` rows without those `new` replaces (equal `keys`), then `new`."""
+    replaced = {tuple(r.get(k) for k in keys) for r in new}
+    return [r for r in old if tuple(r.get(k) for k in keys) not in replaced] + new
+
+
 def main(argv=None):
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--quick", action="store_true")
     p.add_argument("--x64", action="store_true")
-    p.add_argument("--skip-accuracy", action="store_true")
+    p.add_argument("--parts", nargs="+", default=["runs", "accuracy"])
+    p.add_argument("--scales", type=float, nargs="+", default=None)
+    p.add_argument(
+        "--courant", type=float, default=None, help="the adaptive runs' Courant"
+    )
+    p.add_argument("--merge", action="store_true", help="add to the results file")
     p.add_argument("--out", default=None)
     args = p.parse_args(argv)
     if args.x64:
@@ -320,19 +336,10 @@ def main(argv=None):
     args.spacing = 0.02 if args.quick else 0.01
     args.t_end = 1.0 if args.quick else 2.0
     args.save_every = 0.01
-    args.scales = (1.0,) if args.quick else (1.0, 2.0, 0.5)
+    args.scales = tuple(args.scales or ((1.0,) if args.quick else (1.0, 2.0, 0.5)))
     args.max_halvings = 3
     args.scan_scales = (1.0,)  # the fixed-dt scan only here (runs are long)
     args.accuracy_spacing = 0.02 if args.quick else 0.01
-    data = {
-        "machine": machine_info(),
-        "x64": bool(args.x64),
-        "quick": bool(args.quick),
-        "spacing": args.spacing,
-        "t_end": args.t_end,
-        "runs": runs_to_end(args),
-        "accuracy": [] if args.skip_accuracy else accuracy(args),
-    }
     backend = jax.default_backend()
     out = (
         Path(args.out)
@@ -342,10 +349,31 @@ def main(argv=None):
         / (f"adaptive_steps{'_quick' if args.quick else ''}_{backend}")
     )
     out.parent.mkdir(parents=True, exist_ok=True)
+    data = {"runs": [], "accuracy": []}
+    if args.merge and out.with_suffix(".json").exists():
+        data = json.loads(out.with_suffix(".json").read_text())
+    data.update(
+        machine=machine_info(),
+        x64=bool(args.x64),
+        quick=bool(args.quick),
+        spacing=args.spacing,
+        t_end=args.t_end,
+    )
+    if "runs" in args.parts:
+        rows = runs_to_end(args)
+        data["runs"] = _merged(data["runs"], rows, ("geometry", "mode", "courant"))
+        _write(data, out)
+    if "accuracy" in args.parts:
+        rows = accuracy(args)
+        data["accuracy"] = _merged(data["accuracy"], rows, ("case", "mode"))
+        _write(data, out)
+    print(f"wrote {out}.{{json,md,png}}")
+
+
+def _write(data: dict, out: Path) -> None:
     out.with_suffix(".json").write_text(json.dumps(data, indent=1))
     out.with_suffix(".md").write_text(markdown(data))
     plot(data, out.with_suffix(".png"))
-    print(f"wrote {out}.{{json,md,png}}")
 
 
 if __name__ == "__main__":

@@ -50,7 +50,7 @@ class Result(eqx.Enumeration):
         "let the run choose it (scene setting `dt='adaptive'`, the default)."
     )
     time_step_below_minimum = (
-        "The adaptive time step fell below `Adaptive.dt_min` (by default 1e-3 x "
+        "The adaptive time step fell below `Adaptive.dt_min` (by default 1e-2 x "
         "the largest step): one of `jaxmps.time_step_limits` asked for less. "
         "Either a particle became too fast or too strongly accelerated for the "
         "resolution, usually a sign of an instability (a particle squeezed into "
