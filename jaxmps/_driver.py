@@ -126,6 +126,8 @@ def _seconds(name: str, value) -> float:
 
 # State.step is an int32.
 _MAX_STEPS = 2**31 - 1
+# Frames a run writes at most (each holds every particle).
+_MAX_SAVES = 10**6
 
 
 def _plan(
@@ -148,11 +150,19 @@ def _plan(
     if t_end / dt > _MAX_STEPS:
         raise ValueError(
             f"t_end={t_end:g} s is {t_end / dt:.3g} steps of dt={dt:.4g} s, beyond "
-            f"the {_MAX_STEPS} steps a run counts; lower `t_end` or raise `dt`."
+            f"the {_MAX_STEPS} steps a run counts; lower `t_end` or raise `dt` "
+            "(`dt_max` under adaptive steps)."
         )
     # Saves closer than a millionth of an interval to the next are merged into it
     # (t_end a float's rounding beyond a multiple of save_every).
     slack = 1e-6 * save_every
+    count = (t_end - t_now) / save_every
+    if not count <= _MAX_SAVES:
+        raise ValueError(
+            f"t_end={t_end:g} s with save_every={save_every:g} s is "
+            f"{count:.3g} saves, beyond the {_MAX_SAVES} a run writes; raise "
+            "`save_every` (--save-every) or lower `t_end`."
+        )
     first = math.floor((t_now + slack) / save_every) + 1
     last = math.ceil((t_end - slack) / save_every)
     times = [k * save_every for k in range(first, last)]
