@@ -289,7 +289,7 @@ def _record(
     pool, a particle out of the domain, a step beyond a stability limit (over the
     `mobile` particles), an unconverged pressure solve, a non-finite state; and
     the step's largest acceleration by forces (`forced`: gravity and viscosity,
-    and the pressure where it is a force, `AbstractPressureSolver.pressure_is_force`)."""
+    and the pressure where it is a force: `pressure_is_force` of the solver)."""
     speed = jnp.sqrt(jnp.sum(new.velocity**2, axis=-1))
     courant = jnp.max(jnp.where(mobile, speed, 0.0)) * params.dt / scene.spacing
     # A diagnostic of the dt choice, which is a constant to the gradient (and the

@@ -25,9 +25,8 @@ def _series(name, series):
 def front():
     case = jaxmps.scenes.dam_break(spacing=0.0073)  # 20 particles across the column
     obs = jaxmps.scenes.observe_probes(case.probes)
-    dt = float(case.params.dt)
-    n = int(0.25 / dt) // 10 * 10
-    tr = jaxmps.simulate(case.scene, case.params, case.state, n, 10, obs)
+    times = 0.00625 * np.arange(1, 41)  # to 0.25 s
+    tr = jaxmps.simulate(case.scene, case.params, case.state, times=times, observe=obs)
     a = case.config["column_width"]
     t = np.asarray(tr.saved["time"]) * np.sqrt(2 * 9.81 / a)
     return t, np.asarray(tr.saved["front"]) / a
