@@ -510,16 +510,37 @@ def run(
     dt = float(np.asarray(case.params.dt))
     plan = _plan(dt, t_end, save_every, t_now, chunk_saves, max_steps_per_save)
     done = int(np.asarray(state.step))
+    label = f"{case.name} (t_end={t_end:g} s)" if progress else None
+    state, rows = _written(case, state, plan, out, append, done, label)
+    _warn_escaped(case, state)
+    return RunResult(
+        state=state,
+        probes=_gather(rows),
+        path=out,
+        n_steps=int(np.asarray(state.step)) - done,
+        wall_time=_time.perf_counter() - started,
+    )
 
+
+def _written(
+    case: Case,
+    state: State,
+    plan: _Plan,
+    out: Path | None,
+    append: bool,
+    done: int,
+    label: str | None,
+) -> tuple[State, list[dict]]:
+    """Make the plan's saves into the run file (`_saves`), with a progress bar
+    titled `label` (None: none), signals deferred to the end of a chunk, and a
+    failed write named; the final state and the probe rows."""
+    t_now = float(np.asarray(state.time))
     writer = None
     with _deferred_signals() as received:
         try:
             writer = _open_writer(out, case, append, done)
-            label = f"{case.name} (t_end={t_end:g} s)"
-            with _progress(progress, plan, t_now, label) as bar:
-                state, rows = _saves(
-                    case, state, plan, writer, out, append, bar, received
-                )
+            with _progress(label is not None, plan, t_now, label or "") as bar:
+                return _saves(case, state, plan, writer, out, append, bar, received)
         except OSError as e:
             if writer is None or writer.path != out:
                 raise
@@ -529,21 +550,18 @@ def run(
                 writer.close()
                 if out is not None and writer.path != out:
                     writer.path.unlink(missing_ok=True)
+
+
+def _warn_escaped(case: Case, state: State) -> None:
+    """Warn when fluid particles left the domain and were taken out of the run."""
     escaped = int(np.asarray(state.escaped))
     if escaped:
         warnings.warn(
             f"{escaped} fluid particle(s) of '{case.name}' left the domain (spray, "
             "water over a wall) and were taken out of the run (`State.escaped`; "
             f"the run ends beyond `escape_limit` = {case.scene.escape_limit}).",
-            stacklevel=2,
+            stacklevel=3,
         )
-    return RunResult(
-        state=state,
-        probes=_gather(rows),
-        path=out,
-        n_steps=int(np.asarray(state.step)) - done,
-        wall_time=_time.perf_counter() - started,
-    )
 
 
 def _starting_state(
