@@ -407,7 +407,7 @@ def _advance(
                 remaining,
                 jnp.where(remaining < 2 * chosen, 0.5 * remaining, chosen),
             )
-        new, _ = _step(scene, eqx.tree_at(lambda p: p.dt, params, dt), old, batch_axis)
+        new, _ = _step(scene, params, old, batch_axis, dt)
         if t_target is not None:
             new = dataclasses.replace(new, time=jnp.where(landing, t_target, new.time))
         reject = jnp.asarray(False)

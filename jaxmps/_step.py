@@ -44,8 +44,17 @@ from ._types import Field, Kind, Mask, Positions, Scalar, Velocities
 
 
 def _step(
-    scene: Scene, params: Params, state: State, batch_axis: str | None = None
+    scene: Scene,
+    params: Params,
+    state: State,
+    batch_axis: str | None = None,
+    dt: Scalar | None = None,
 ) -> tuple[State, StepInfo]:
+    """One step of `dt` (None: `params.dt`). `params.dt` stays the reference step
+    (`PressureInputs.reference_dt`); the stages see `params` with `dt` in it."""
+    reference_dt = params.dt
+    if dt is not None:
+        params = eqx.tree_at(lambda p: p.dt, params, dt)
     disc, dt = scene.discretisation, params.dt
     with jax.named_scope("boundaries"):
         state, pool_short = _boundaries(scene, params, state)
@@ -78,7 +87,7 @@ def _step(
             )
     with jax.named_scope("pressure"):
         inputs = _pressure_inputs(
-            state, pairs_k, pairs, n_star, surface, x_star, u_star
+            state, pairs_k, pairs, n_star, surface, x_star, u_star, reference_dt
         )
         solution = scene.solver(disc, scene.laplacian, scene.grid, params, inputs)
     with jax.named_scope("correct"):
@@ -180,9 +189,11 @@ def _pressure_inputs(
     surface: Mask,
     position: Positions,
     velocity: Velocities,
+    reference_dt: Scalar,
 ) -> fluid.PressureInputs:
     """What the pressure stage may use: the tentative positions and velocities
-    (r*, u*) with their pairs, number density and surface, and the step's start."""
+    (r*, u*) with their pairs, number density and surface, the step's start, and
+    the reference step."""
     return fluid.PressureInputs(
         pairs=pairs,
         n_star=n_star,
@@ -194,6 +205,7 @@ def _pressure_inputs(
         pressure_k=state.pressure,
         kind=state.kind,
         active=state.active,
+        reference_dt=reference_dt,
     )
 
 
@@ -393,11 +405,16 @@ def time_step(scene: Scene, params: Params, state: State) -> Scalar:
 
 
 def step(
-    scene: Scene, params: Params, state: State, *, batch_axis: str | None = None
+    scene: Scene,
+    params: Params,
+    state: State,
+    *,
+    dt: Scalar | None = None,
+    batch_axis: str | None = None,
 ) -> tuple[State, StepInfo]:
-    """Advance `state` by one time step: `params.dt`, or with adaptive steps
-    (`Scene.time_step`) `time_step(scene, params, state)` (not retried if it
-    fails: `simulate` retries).
+    """Advance `state` by one time step: `dt` if given, else `params.dt`, or with
+    adaptive steps (`Scene.time_step`) `time_step(scene, params, state)` (not
+    retried if it fails: `simulate` retries).
 
     Failures are recorded in the returned `state.result` (first failure wins); this
     function never raises at run time. Use `simulate` for rollouts. For a loop of
@@ -407,6 +424,9 @@ def step(
 
     Args:
         scene, params, state: the simulation.
+        dt: the step's length [s]. `params.dt` stays the reference step of the
+            pressure source's density relaxation (`PressureInputs.reference_dt`),
+            as in an adaptive rollout, whose steps this replays.
         batch_axis: when this call runs under `jax.vmap(..., axis_name=name)`,
             `name`: the batch then decides jointly whether the carried neighbour
             lists can be reused (`neighbours.reuse_or_build`).
@@ -415,17 +435,20 @@ def step(
         The new state and this step's diagnostics.
     """
     check_compatible(scene, params, state)
-    return _jit_step(scene, params, state, batch_axis)
+    return _jit_step(scene, params, state, batch_axis, dt)
 
 
 @eqx.filter_jit
 def _jit_step(
-    scene: Scene, params: Params, state: State, batch_axis: str | None
+    scene: Scene,
+    params: Params,
+    state: State,
+    batch_axis: str | None,
+    dt: Scalar | None,
 ) -> tuple[State, StepInfo]:
-    if scene.time_step is not None:
+    if dt is None and scene.time_step is not None:
         dt = time_step(scene, params, state)
-        params = eqx.tree_at(lambda p: p.dt, params, dt)
-    return _step(scene, params, state, batch_axis)
+    return _step(scene, params, state, batch_axis, dt)
 
 
 def with_neighbour_lists(scene: Scene, state: State) -> State:

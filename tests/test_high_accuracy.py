@@ -16,6 +16,8 @@ from jaxmps.fluid import (
     DensitySource,
     DynamicCompensation,
     DynamicStabilisation,
+    HigherOrderSource,
+    MixedSource,
     density_rate,
 )
 from jaxmps.operators import (
@@ -147,6 +149,45 @@ def test_dynamic_compensation_pushes_against_compression():
     expanding = eqx.tree_at(lambda s: s.velocity_k, inputs, -inward)
     s2 = np.asarray(DynamicCompensation()(disc, expanding))
     np.testing.assert_allclose(s2[interior], 0.0, atol=1e-9 * np.abs(s).max())
+
+
+@pytest.mark.parametrize(
+    "source",
+    [DensitySource(), MixedSource(), HigherOrderSource(compensation=None)],
+    ids=lambda s: type(s).__name__,
+)
+def test_density_relaxation_is_per_reference_step(source):
+    """A compressed lattice at rest: with fixed steps the density term is
+    rho0/dt^2 (n0 - n)/n0 as printed; with a step eight times shorter than the
+    reference step (adaptive steps) its pressure impulse S dt, which sets the
+    velocity the correction imposes, is that of the reference step, not eight
+    times more."""
+    disc, x, pairs, interior = _lattice(2, WendlandWeight())
+    squeezed = make_pairs(pairs.index, 0.98 * x, disc.weight, disc.r_e)
+    n = number_density(squeezed)
+
+    def inputs(dt, reference):
+        return jaxmps.fluid.SourceInputs(
+            pairs=squeezed,
+            n_star=n,
+            u_star=jnp.zeros_like(x),
+            pairs_k=squeezed,
+            n_k=n,
+            velocity_k=jnp.zeros_like(x),
+            density=jnp.asarray(1000.0),
+            dt=jnp.asarray(dt),
+            reference_dt=None if reference is None else jnp.asarray(reference),
+        )
+
+    dt = 1e-3
+    relaxation = getattr(source, "gamma", getattr(source, "relaxation", None))
+    printed = relaxation * 1000.0 / dt**2 * (disc.n0 - n) / disc.n0
+    fixed = np.asarray(source(disc, inputs(dt, None)))
+    np.testing.assert_allclose(fixed[interior], printed[interior], rtol=1e-12)
+    assert np.all(fixed[interior] < 0)  # compressed: the pressure rises
+    np.testing.assert_allclose(source(disc, inputs(dt, dt)), fixed, rtol=1e-12)
+    short = np.asarray(source(disc, inputs(dt / 8, dt)))
+    np.testing.assert_allclose(short * (dt / 8), fixed * dt, rtol=1e-12)
 
 
 def test_dynamic_stabilisation_restores_point_contact_and_momentum():

@@ -83,6 +83,7 @@ class SemiImplicit(AbstractPressureSolver):
             velocity_k=inputs.velocity_k,
             density=params.density,
             dt=params.dt,
+            reference_dt=inputs.reference_dt,
         )
         coefficient, factor = laplacian.coefficients(inputs.pairs, disc)
         source = -self.source(disc, sources) / factor

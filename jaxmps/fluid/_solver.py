@@ -25,6 +25,10 @@ class PressureInputs(eqx.Module):
         velocity_k: velocities at the start of the step u^k [m/s].
         pressure_k: the pressures of the previous step [Pa] (a warm start).
         kind, active: the particles' kinds and active flags.
+        reference_dt: the step a per-step relaxation is meant for [s]:
+            `Params.dt`, which is the step itself with fixed steps and the largest
+            step (`dt_max`) with adaptive ones (see `MixedSource`); None: the
+            step itself.
     """
 
     pairs: Pairs
@@ -37,6 +41,7 @@ class PressureInputs(eqx.Module):
     pressure_k: Field
     kind: Kinds
     active: Mask
+    reference_dt: Scalar | None = None
 
 
 class PressureSolution(eqx.Module):

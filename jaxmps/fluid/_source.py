@@ -19,6 +19,8 @@ class SourceInputs(eqx.Module):
         pairs_k, n_k, velocity_k: the same at the start of the step (r^k, u^k).
         density: reference density rho0 [kg/m^3].
         dt: time step [s].
+        reference_dt: the step a per-step density relaxation is meant for [s]
+            (`PressureInputs.reference_dt`); None: `dt` (fixed steps).
     """
 
     pairs: Pairs
@@ -29,6 +31,7 @@ class SourceInputs(eqx.Module):
     velocity_k: Float[Array, "n d"]
     density: Float[Array, ""]
     dt: Float[Array, ""]
+    reference_dt: Float[Array, ""] | None = None
 
 
 class AbstractSource(eqx.Module):
@@ -41,15 +44,26 @@ class AbstractSource(eqx.Module):
         """S_i [Pa/m^2]."""
 
 
+# Choice: a density term restores a fraction (its relaxation) of the density error
+# per *reference* step, rho0/(dt dt_ref) (n0 - n)/n0, not per step, rho0/dt^2 ...
+# as printed. The two agree with fixed steps (dt = dt_ref). With adaptive steps the
+# printed form restores the error faster the shorter the step, and the velocity it
+# imposes, relaxation x l0 x error / dt, grows as the step shrinks: at an impact
+# that feeds back (faster particles, a shorter step, a stronger kick) until the
+# step falls below dt_min (the 2x Lobovsky dam break, benchmarks/NOTES.md). Per
+# reference step, the restoring rate per second and the imposed velocity do not
+# depend on the step.
 def _density_term(inputs: SourceInputs, n, n0):
-    """rho0/dt^2 (n0 - n)/n0."""
-    return inputs.density / inputs.dt**2 * (n0 - n) / n0
+    """rho0/(dt dt_ref) (n0 - n)/n0."""
+    reference = inputs.dt if inputs.reference_dt is None else inputs.reference_dt
+    return inputs.density / (inputs.dt * reference) * (n0 - n) / n0
 
 
 class DensitySource(AbstractSource):
-    """Seed 000 eq. 2.2-14: S = relaxation * rho0/dt^2 (n0 - n*)/n0.
+    """Seed 000 eq. 2.2-14: S = relaxation * rho0/dt^2 (n0 - n*)/n0 (one dt of the
+    two is the reference step with adaptive steps: see `_density_term`).
 
-    With relaxation = 1 this is the source as printed. It corrects positions but leaves
+    With relaxation = 1 and fixed steps this is the source as printed. It corrects positions but leaves
     the pressure impulse in the velocity, so a density error e and its rate
     y = dt div(u) obey e' = (1 - a)(e + y), y' = (1 - a) y - a e (a = relaxation x
     the discrete operator gain g, measured 1.34-1.40 on a lattice): stable only for
@@ -67,12 +81,14 @@ class DensitySource(AbstractSource):
 
 class MixedSource(AbstractSource):
     """Tanaka & Masunaga (2010, J. Comput. Phys. 229:4279) mixed source:
-    S = rho0/dt div(u*) + gamma rho0/dt^2 (n0 - n*)/n0,
+    S = rho0/dt div(u*) + gamma rho0/(dt dt_ref) (n0 - n*)/n0,
     with the MPS divergence div(u)_i = d/n0 sum_j (u_j - u_i).r_ij/|r_ij|^2 w_ij.
 
     The divergence term removes the velocity memory of the density source (the
     corrected velocity is discretely divergence-free) and the small density term
-    keeps the particle number density from drifting.
+    keeps the particle number density from drifting. With fixed steps dt_ref = dt
+    (as printed); with adaptive steps it is the largest step, `Params.dt`, so that
+    gamma is a relaxation per largest step whatever the step (`_density_term`).
     """
 
     gamma: float = 0.01
@@ -131,10 +147,11 @@ class DynamicCompensation(AbstractCompensation):
 class HigherOrderSource(AbstractSource):
     """Higher-order source (HS) of Khayyer & Gotoh (2009), seed 001 eq. 2.4-2.5:
     S = -(rho0 s / (n0 dt)) sum_j w'(r*_ij) (r*_ij . u*_ij) / r*_ij
-        + gamma rho0/dt^2 (n0 - n^k)/n0  -  rho0 S_ECS,
+        + gamma rho0/(dt dt_ref) (n0 - n^k)/n0  -  rho0 S_ECS,
     i.e. rho0/dt times minus the relative rate of change of the number density
     (with the sign of digest erratum 3), a Tanaka-Masunaga number-density term on
-    n^k (eq. 2.5) and an optional error-compensating term (ECS).
+    n^k (eq. 2.5; dt_ref = dt with fixed steps, see `_density_term`) and an
+    optional error-compensating term (ECS).
 
     Attributes:
         gamma: relaxation coefficient of the number-density term (1e-3 in seed 001,
