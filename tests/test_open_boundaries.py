@@ -76,17 +76,17 @@ def test_inflow_params_must_match_scene():
 def test_tail_weir_holds_water_above_its_crest():
     """With a tail weir the downstream level rises above the crest and the water
     spills over it (the outflow plane lies behind the weir). The impact of the
-    supercritical flow on the weir needs a small time step: at Courant 0.2 it
-    explodes at ~0.4 s (see the closing note of the explicit/open-boundary work).
-    The splash is chaotic (a 1e-10 m round-off difference at 0.12 s grows to 0.1 m
-    by 0.36 s), so this test once failed or passed with the summation order: its
-    particles left the domain through a gap under the weir (the bed ended where the
-    weir began) and over the upstream end. With the bed run on under the weir and a
-    head-box wall up to the domain top, Courant 0.03, 0.035 and 0.04 hold (no fluid
-    below the bed, none upstream of the inflow); 0.05 went non-finite at 0.55 s."""
+    supercritical flow on the weir is violent: with fixed steps it needed Courant
+    0.03-0.04 (0.2 explodes at ~0.4 s, 0.05 went non-finite at 0.55 s); with
+    adaptive steps and the density term per reference step it runs at the default
+    Courant 0.1 (float32 and float64, this weir and a 0.05 m one on a 0.45 m bed:
+    no particle left the domain). The splash is chaotic (a 1e-10 m round-off
+    difference grows to 0.1 m within 0.25 s); the bed runs on under the weir and a
+    head-box wall reaches the domain top, so that no particle can leave below the
+    weir or over the upstream end."""
     l0 = 0.0075
     case = jaxmps.scenes.flume(
-        spacing=l0, bed_length=0.3, weir_height=0.06, t_end=0.8, courant=0.03
+        spacing=l0, bed_length=0.3, weir_height=0.06, t_end=0.8
     )
     tr = _run(case, 0.8)
     t = np.asarray(tr.saved["time"])
