@@ -11,7 +11,8 @@ Everyday API, re-exported here:
   `without_neighbour_lists` for loops of `step`; `Trajectory`, `Frame`, `frame`,
   `StepInfo`, `Result`; adaptive time steps: `Adaptive`, `time_step`,
   `time_step_limits`, `StepHistory`;
-- sweeps and fits: `sweep`, `calibrate`;
+- sweeps and fits: `sweep`, `calibrate`; over devices and processes:
+  `member_mesh`, `start_processes`, and `sweep_run` (a run file per member);
 - the two pressure stages `SemiImplicit`, `Explicit` and the gradients
   `CorrectedGradient`, `StandardGradient`, with the weight `MPSWeight`;
 - the coupling records between fluid and body stages: `Coupling`, `FluidLoad`.
@@ -35,6 +36,8 @@ from ._build import make_scene as make_scene
 from ._build import make_state as make_state
 from ._coupling import Coupling as Coupling
 from ._coupling import FluidLoad as FluidLoad
+from ._devices import member_mesh as member_mesh
+from ._devices import start_processes as start_processes
 from ._driver import RunInterrupted as RunInterrupted
 from ._driver import run as run
 from ._params import Params as Params
@@ -54,6 +57,9 @@ from ._step import time_step_limits as time_step_limits
 from ._step import with_neighbour_lists as with_neighbour_lists
 from ._step import without_neighbour_lists as without_neighbour_lists
 from ._stepping import Adaptive as Adaptive
+from ._sweep_files import SweepRunResult as SweepRunResult
+from ._sweep_files import grid as grid
+from ._sweep_files import sweep_run as sweep_run
 from ._types import Kind as Kind
 from .calibration import calibrate as calibrate
 from .calibration import sweep as sweep

@@ -72,7 +72,7 @@ class Result(eqx.Enumeration):
 # fields.
 
 
-def result_code(result: Result) -> Int[ArrayLike, ""]:
+def result_code(result: Result) -> Int[ArrayLike, "*batch"]:
     """The integer code of `result` (0 for `Result.successful`); batched results
     give an array of codes."""
     return result._value

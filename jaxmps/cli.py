@@ -1,4 +1,4 @@
-"""The `jaxmps` command line (DESIGN.md §4): scenes, run, info, plot."""
+"""The `jaxmps` command line (DESIGN.md §4): scenes, run, sweep, info, plot."""
 
 import argparse
 import json
@@ -49,15 +49,19 @@ class UsageError(ValueError):
     """A refused command line, printed as one line (exit code 2)."""
 
 
-def _start_jax(x64: bool):
+def _start_jax(x64: bool, platform_only: bool = False):
     """Import JAX and start its backend, refusing (UsageError) a platform that
-    cannot start, e.g. JAX_PLATFORMS=cuda on a machine without a GPU."""
+    cannot start, e.g. JAX_PLATFORMS=cuda on a machine without a GPU. With
+    `platform_only` the backend is left to start later (a multi-process run
+    starts it after joining the other processes)."""
     import os
 
     import jax
 
     if x64:
         jax.config.update("jax_enable_x64", True)
+    if platform_only:
+        return jax
     try:
         jax.devices()
     except Exception as e:  # noqa: BLE001 - JAX raises several types here
@@ -156,9 +160,112 @@ def _cmd_run(args) -> int:
     return 0
 
 
+def _parse_vary(items: list[str]) -> dict:
+    """`--vary NAME=V1,V2,...` items as {name: [values]} (UsageError if malformed)."""
+    varied = {}
+    for item in items:
+        name, sep, text = item.partition("=")
+        name = name.strip()
+        if not sep or not name or not text.strip():
+            raise UsageError(f"--vary expects NAME=V1,V2,..., got {item!r}.")
+        if name in varied:
+            raise UsageError(f"--vary names {name!r} twice.")
+        values = [parse_value(v) for v in text.split(",")]
+        bad = [v for v in values if isinstance(v, (str, bool)) or v is None]
+        if bad:
+            raise UsageError(
+                f"--vary {name}: values must be numbers, got {bad[0]!r} in {item!r}."
+            )
+        varied[name] = values
+    if not varied:
+        raise UsageError("jaxmps sweep needs at least one --vary NAME=V1,V2,...")
+    return varied
+
+
+def _start_processes(args, jax) -> None:
+    """Join a multi-process run (`--coordinator`, `--num-processes`,
+    `--process-id`) with a bounded wait for the coordinator."""
+    given = [args.coordinator, args.num_processes, args.process_id]
+    if all(v is None for v in given):
+        return
+    if any(v is None for v in given):
+        raise UsageError(
+            "--coordinator, --num-processes and --process-id go together "
+            "(one process per host, the same --coordinator HOST:PORT for all)."
+        )
+    if not (args.num_processes >= 1 and 0 <= args.process_id < args.num_processes):
+        raise UsageError(
+            f"--process-id must lie in [0, --num-processes), got {args.process_id} "
+            f"of {args.num_processes}."
+        )
+    from ._devices import start_processes
+
+    print(
+        f"jaxmps sweep: process {args.process_id} of {args.num_processes} joining "
+        f"the run at {args.coordinator} (waiting up to {args.timeout:g} s)",
+        file=sys.stderr,
+    )
+    start_processes(args.coordinator, args.num_processes, args.process_id, args.timeout)
+
+
+def _cmd_sweep(args) -> int:
+    from ._sweep_files import check_folder
+
+    overrides = _parse_overrides(args.set)
+    varied = _parse_vary(args.vary)
+    for name in ("t_end", "save_every"):
+        value = getattr(args, name)
+        if value is not None and not (math.isfinite(value) and value > 0):
+            flag = "--" + name.replace("_", "-")
+            raise UsageError(f"{flag} must be positive and finite [s], got {value!r}.")
+    out = check_folder(args.out or f"{args.scene}_sweep", args.overwrite)
+    jax = _start_jax(args.x64, platform_only=args.coordinator is not None)
+    _start_processes(args, jax)
+    from . import scenes
+    from ._devices import member_mesh
+    from ._sweep_files import grid, sweep_run
+
+    case = scenes.build(args.scene, **overrides)
+    values = grid(varied)
+    mesh = member_mesh(devices=args.devices)
+    members = len(next(iter(values.values())))
+    lead = jax.process_index() == 0
+    if lead:
+        print(
+            f"jaxmps: sweep of {case.name}, {members} members "
+            f"({' x '.join(f'{len(v)} {k}' for k, v in varied.items())}) on "
+            f"{mesh.devices.size} device(s) in {jax.process_count()} process(es), "
+            f"t_end={args.t_end if args.t_end is not None else case.t_end:g} s"
+        )
+    result = sweep_run(
+        case,
+        values,
+        t_end=args.t_end,
+        out=out,
+        save_every=args.save_every,
+        mesh=mesh,
+        max_steps_per_save=args.max_steps_per_save,
+        overwrite=args.overwrite,
+        progress=lead and not args.quiet,
+    )
+    failed = [m for m in result.index["members"] if m.get("code", 0)]
+    if lead:
+        print(
+            f"Done: {members - len(failed)} of {members} members successful in "
+            f"{result.wall_time:.1f} s. Wrote {out}/ (index {out}/sweep.json)."
+        )
+        for m in failed:
+            reached = m["t_reached"]
+            print(f"  {m['file']} {m['values']}: {m['result']} at t={reached:.4g} s")
+    return 1 if failed else 0
+
+
 def _cmd_info(args) -> int:
     from .io import read_run
 
+    path = Path(args.file)
+    if path.is_dir() or path.suffix == ".json":
+        return _describe_sweep(path)
     data = read_run(args.file)
     try:
         return _describe(data)
@@ -224,6 +331,30 @@ def _describe(data) -> int:
             + (f", {escaped} fluid particles left the domain" if escaped else "")
         )
     print(f"  config   {json.dumps(data.config, sort_keys=True)}")
+    return 0
+
+
+def _describe_sweep(path: Path) -> int:
+    """Print what a sweep's folder (or its index) holds: a line per member."""
+    from ._sweep_files import read_index
+
+    index = read_index(path)
+    members = index.get("members", [])
+    ok = sum(1 for m in members if m.get("result") == "successful")
+    print(
+        f"{path}: jaxmps sweep of {index.get('scene')} (written by jaxmps "
+        f"{index.get('jaxmps_version')}), {len(members)} members, {ok} successful, "
+        f"t_end {index.get('t_end')} s, on {index.get('devices')} device(s)"
+    )
+    varied = index.get("varied", [])
+    print(f"  varied   {', '.join(varied)}")
+    print(f"  config   {json.dumps(index.get('config'), sort_keys=True)}")
+    for m in members:
+        values = ", ".join(f"{k}={m['values'][k]:g}" for k in varied)
+        state = m.get("result", "not run")
+        reached = m.get("t_reached")
+        at = "" if reached is None else f" t={reached:.4g} s, {m.get('steps')} steps"
+        print(f"  {m['file']}  {values}  {state}{at}")
     return 0
 
 
@@ -365,8 +496,11 @@ def _parser() -> argparse.ArgumentParser:
         "to it (or writing --out when given); --set changes settings",
     )
     p.add_argument("--quiet", action="store_true", help="no progress bar")
-    p = sub.add_parser("info", help="what a run file holds", parents=[debug])
-    p.add_argument("file")
+    _sweep_parser(sub, debug)
+    p = sub.add_parser(
+        "info", help="what a run file or a sweep's folder holds", parents=[debug]
+    )
+    p.add_argument("file", help="a run file, or a sweep's folder (or its sweep.json)")
     p = sub.add_parser(
         "plot", help="particle snapshot coloured by pressure", parents=[debug]
     )
@@ -376,6 +510,87 @@ def _parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--out", default=None, help="PNG file (default RUN.png)")
     return parser
+
+
+_SWEEP = """\
+A sweep runs the scene once per member as one vmapped batch, split over the
+devices (--devices, default all). With several --vary, every combination runs.
+It writes FOLDER/member_000.h5, ... (each a run file as `jaxmps run` writes) and
+FOLDER/sweep.json, the index: the varied values, each member's file, result and
+time reached (`jaxmps info FOLDER`). A failed member keeps its frames to the
+failure; the others go on; the exit code is 1 if any member failed.
+
+Several processes (one per host of a cluster, or several on one machine), each
+with its devices, run one sweep together: start the same command in each with
+--coordinator HOST:PORT (process 0's host and a free port), --num-processes N and
+its own --process-id; process 0 writes the files."""
+
+
+def _sweep_parser(sub, debug) -> None:
+    p = sub.add_parser(
+        "sweep",
+        help="run a scene once per parameter value, one vmapped batch over devices",
+        parents=[debug],
+        epilog=_SWEEP,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    p.add_argument("scene", nargs="?", default="dam_break")
+    p.add_argument(
+        "--vary",
+        action="append",
+        default=[],
+        metavar="NAME=V1,V2,...",
+        help="a Params field and its values (repeatable: every combination)",
+    )
+    p.add_argument(
+        "--set",
+        action="append",
+        default=[],
+        metavar="NAME=VALUE",
+        help="override a scene parameter (repeatable)",
+    )
+    p.add_argument("--t-end", type=float, default=None, help="simulated time [s]")
+    p.add_argument(
+        "--save-every",
+        type=float,
+        default=None,
+        help="simulated time between saved frames [s]",
+    )
+    p.add_argument("--out", default=None, help="folder (default SCENE_sweep)")
+    p.add_argument(
+        "--overwrite", action="store_true", help="replace the sweep in --out"
+    )
+    p.add_argument(
+        "--devices",
+        type=int,
+        default=None,
+        metavar="N",
+        help="split the members over the first N devices (default: all)",
+    )
+    p.add_argument(
+        "--max-steps-per-save",
+        type=int,
+        default=None,
+        metavar="N",
+        help="the most step attempts between two saves",
+    )
+    p.add_argument("--x64", action="store_true", help="run in float64")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.add_argument(
+        "--coordinator",
+        default=None,
+        metavar="HOST:PORT",
+        help="multi-process run: process 0's address",
+    )
+    p.add_argument("--num-processes", type=int, default=None, metavar="N")
+    p.add_argument("--process-id", type=int, default=None, metavar="I")
+    p.add_argument(
+        "--timeout",
+        type=float,
+        default=60.0,
+        metavar="S",
+        help="seconds to wait for the other processes (default 60)",
+    )
 
 
 # Errors a user's input can cause: one line, exit code 2.
@@ -405,6 +620,7 @@ def main(argv: list[str] | None = None) -> int:
     commands = {
         "scenes": _cmd_scenes,
         "run": _cmd_run,
+        "sweep": _cmd_sweep,
         "info": _cmd_info,
         "plot": _cmd_plot,
     }

@@ -85,9 +85,7 @@ def test_tail_weir_holds_water_above_its_crest():
     head-box wall reaches the domain top, so that no particle can leave below the
     weir or over the upstream end."""
     l0 = 0.0075
-    case = jaxmps.scenes.flume(
-        spacing=l0, bed_length=0.3, weir_height=0.06, t_end=0.8
-    )
+    case = jaxmps.scenes.flume(spacing=l0, bed_length=0.3, weir_height=0.06, t_end=0.8)
     tr = _run(case, 0.8)
     t = np.asarray(tr.saved["time"])
     level = np.asarray(tr.saved["level_downstream"])[t > 0.5].mean()

@@ -63,12 +63,12 @@ class DensitySource(AbstractSource):
     """Seed 000 eq. 2.2-14: S = relaxation * rho0/dt^2 (n0 - n*)/n0 (one dt of the
     two is the reference step with adaptive steps: see `_density_term`).
 
-    With relaxation = 1 and fixed steps this is the source as printed. It corrects positions but leaves
-    the pressure impulse in the velocity, so a density error e and its rate
-    y = dt div(u) obey e' = (1 - a)(e + y), y' = (1 - a) y - a e (a = relaxation x
-    the discrete operator gain g, measured 1.34-1.40 on a lattice): stable only for
-    a < 4/3, and undamped in y, so spurious currents grow like 1/dt. Kept for
-    reproducing the seed; `MixedSource` is the default.
+    With relaxation = 1 and fixed steps this is the source as printed. It corrects
+    positions but leaves the pressure impulse in the velocity, so a density error e
+    and its rate y = dt div(u) obey e' = (1 - a)(e + y), y' = (1 - a) y - a e
+    (a = relaxation x the discrete operator gain g, measured 1.34-1.40 on a
+    lattice): stable only for a < 4/3, and undamped in y, so spurious currents grow
+    like 1/dt. Kept for reproducing the seed; `MixedSource` is the default.
     """
 
     relaxation: float = 1.0

@@ -1,0 +1,229 @@
+"""Sweeps over several devices and processes: the same values as on one device,
+bit for bit in float64; the `jaxmps sweep` command and its index; two processes
+joined by `jax.distributed`; and what bad input gets. Several CPU devices need
+XLA_FLAGS before JAX starts, so these run in subprocesses."""
+
+import json
+import os
+import socket
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import jaxmps
+from jaxmps.cli import main
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _python(code: str, devices: int = 1, timeout: float = 300, env=None):
+    """Run `code` in a fresh interpreter with `devices` CPU devices; its stdout."""
+    environment = {
+        **os.environ,
+        "XLA_FLAGS": f"--xla_force_host_platform_device_count={devices}",
+        "JAX_PLATFORMS": "cpu",
+        "JAX_ENABLE_X64": "1",
+        "PYTHONPATH": str(ROOT),
+        **(env or {}),
+    }
+    done = subprocess.run(
+        [sys.executable, "-c", textwrap.dedent(code)],
+        capture_output=True,
+        text=True,
+        timeout=timeout,
+        env=environment,
+    )
+    assert done.returncode == 0, done.stderr[-3000:]
+    return done.stdout
+
+
+def test_sweep_over_four_devices_equals_one_device():
+    """Five members (padded to two per device) and four members (one per device)
+    split over four CPU devices give the bits of the one-device sweep."""
+    out = _python(
+        """
+        import json, jax, numpy as np, jaxmps
+        from jaxmps import member_mesh
+        assert jax.device_count() == 4 and jax.config.jax_enable_x64
+        case = jaxmps.scenes.dam_break(spacing=0.02)
+        report = {}
+        for count in (5, 4):
+            values = {"viscosity": np.linspace(1e-6, 5e-6, count)}
+            runs = {
+                d: jaxmps.sweep(case, values, times=[0.02, 0.04],
+                                mesh=member_mesh(devices=d))
+                for d in (1, 4)
+            }
+            same = jax.tree.map(np.array_equal, runs[1].saved, runs[4].saved)
+            moved = float(np.ptp(runs[1].saved["front"][:, -1]))
+            report[count] = {
+                "same": all(jax.tree.leaves(same)),
+                "results": np.asarray(runs[4].result).tolist(),
+                "spread": moved,
+            }
+        print(json.dumps(report))
+        """,
+        devices=4,
+    )
+    report = json.loads(out.strip().splitlines()[-1])
+    for count, row in report.items():
+        assert row["same"], count
+        assert row["results"] == [0] * int(count)
+    # The members differ (otherwise equality would say little): the
+    # viscosity spread moves the surge front.
+    assert report["5"]["spread"] > 0
+
+
+def test_member_mesh_refuses_what_does_not_exist():
+    _python(
+        """
+        import jax, numpy as np, pytest, jaxmps
+        from jax.sharding import Mesh
+        from jaxmps import member_mesh
+        with pytest.raises(ValueError, match="devices=8 asked for, but 2 CPU"):
+            member_mesh(devices=8)
+        with pytest.raises(ValueError, match="one axis"):
+            member_mesh(Mesh(np.asarray(jax.devices()).reshape(1, 2), ("a", "b")))
+        with pytest.raises(ValueError, match="whole number"):
+            member_mesh(devices=1.5)
+        case = jaxmps.scenes.hydrostatic(spacing=0.05)
+        with pytest.raises(ValueError, match="at least one member"):
+            jaxmps.sweep(case, {"viscosity": []}, n_steps=2)
+        """,
+        devices=2,
+    )
+
+
+def test_sweep_command_writes_a_run_file_per_member_and_an_index(tmp_path, capsys):
+    out = tmp_path / "sw"
+    argv = ["sweep", "hydrostatic", "--vary", "viscosity=1e-6,2e-6"]
+    argv += ["--vary", "density=1000,1200", "--set", "spacing=0.04"]
+    argv += ["--t-end", "0.02", "--save-every", "0.01", "--out", str(out), "--quiet"]
+    main(argv)
+    index = json.loads((out / "sweep.json").read_text())
+    assert index["format"] == "jaxmps-sweep" and index["varied"] == [
+        "viscosity",
+        "density",
+    ]
+    members = index["members"]
+    assert [m["values"] for m in members] == [
+        {"viscosity": 1e-6, "density": 1000.0},
+        {"viscosity": 1e-6, "density": 1200.0},
+        {"viscosity": 2e-6, "density": 1000.0},
+        {"viscosity": 2e-6, "density": 1200.0},
+    ]
+    assert all(m["result"] == "successful" for m in members)
+    assert all(m["t_reached"] == pytest.approx(0.02) for m in members)
+    for m in members:
+        data = jaxmps.io.read_run(out / m["file"])
+        np.testing.assert_allclose(data.frames["time"], [0.0, 0.01, 0.02])
+        assert data.config["density"] == m["values"]["density"]
+        assert json.loads(data.attrs["sweep_values"]) == m["values"]
+    # The heavier member presses harder on the bottom.
+    bottom = [
+        jaxmps.io.read_run(out / m["file"]).probes["pressure_bottom"][-1]
+        for m in members[:2]
+    ]
+    assert bottom[1] / bottom[0] == pytest.approx(1.2, rel=0.02)
+    capsys.readouterr()
+    main(["info", str(out)])
+    shown = capsys.readouterr().out
+    assert "4 members, 4 successful" in shown
+    assert "member_003.h5  viscosity=2e-06, density=1200  successful" in shown
+    # An existing sweep is not overwritten without --overwrite.
+    with pytest.raises(SystemExit) as e:
+        main(argv)
+    assert e.value.code == 2
+    assert "not empty" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(
+    "argv, message",
+    [
+        (["--vary", "viscosity"], "--vary expects NAME=V1,V2"),
+        (["--vary", "viscosity=1e-6,thick"], "values must be numbers"),
+        (["--vary", "viscosty=1e-6"], "Unknown Params field 'viscosty'"),
+        (["--vary", "viscosity=1e-6", "--devices", "9"], "devices=9 asked for"),
+        (["--vary", "viscosity=-1"], "viscosity"),
+        (["--vary", "viscosity=1e-6", "--out", "x.h5"], "names a run file"),
+        (["--vary", "viscosity=1e-6", "--num-processes", "2"], "go together"),
+    ],
+)
+def test_sweep_command_refuses_bad_input(tmp_path, capsys, monkeypatch, argv, message):
+    monkeypatch.chdir(tmp_path)
+    base = ["sweep", "hydrostatic", "--set", "spacing=0.05", "--t-end", "0.01"]
+    with pytest.raises(SystemExit) as e:
+        main(base + argv)
+    assert e.value.code == 2
+    assert message in capsys.readouterr().err
+    assert not any(tmp_path.iterdir())  # nothing written
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("localhost", 0))
+        return s.getsockname()[1]
+
+
+def _sweep_process(out: Path, extra: list[str], devices: int = 1):
+    env = {
+        **os.environ,
+        "XLA_FLAGS": f"--xla_force_host_platform_device_count={devices}",
+        "JAX_PLATFORMS": "cpu",
+        "PYTHONPATH": str(ROOT),
+    }
+    argv = [sys.executable, "-m", "jaxmps.cli", "sweep", "hydrostatic"]
+    argv += ["--vary", "viscosity=1e-6,2e-6,3e-6", "--set", "spacing=0.04"]
+    argv += ["--t-end", "0.02", "--save-every", "0.01", "--quiet", "--x64"]
+    argv += ["--out", str(out)] + extra
+    return subprocess.Popen(
+        argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env
+    )
+
+
+def test_two_processes_run_one_sweep(tmp_path):
+    """Two processes on this machine (a localhost coordinator, CPU collectives by
+    Gloo), one device each: process 0 writes the files, with the values of the
+    same sweep in one process."""
+    port = _free_port()
+    joint = tmp_path / "joint"
+    procs = [
+        _sweep_process(
+            joint,
+            ["--coordinator", f"localhost:{port}", "--num-processes", "2"]
+            + ["--process-id", str(i), "--timeout", "60"],
+        )
+        for i in range(2)
+    ]
+    outputs = [p.communicate(timeout=300) for p in procs]
+    for p, (stdout, stderr) in zip(procs, outputs):
+        assert p.returncode == 0, stderr[-3000:]
+    assert "in 2 process(es)" in outputs[0][0]
+    alone = tmp_path / "alone"
+    single = _sweep_process(alone, [])
+    _, stderr = single.communicate(timeout=300)
+    assert single.returncode == 0, stderr[-3000:]
+    index = json.loads((joint / "sweep.json").read_text())
+    assert index["processes"] == 2 and index["devices"] == 2
+    for m in index["members"]:
+        a = jaxmps.io.read_run(joint / m["file"]).frames
+        b = jaxmps.io.read_run(alone / m["file"]).frames
+        for name in ("position", "velocity", "pressure"):
+            np.testing.assert_array_equal(a[name], b[name])
+
+
+def test_a_coordinator_that_never_answers_ends_in_a_bounded_wait(tmp_path):
+    port = _free_port()  # nothing listens there
+    proc = _sweep_process(
+        tmp_path / "never",
+        ["--coordinator", f"localhost:{port}", "--num-processes", "2"]
+        + ["--process-id", "1", "--timeout", "3"],
+    )
+    _, stderr = proc.communicate(timeout=120)
+    assert proc.returncode == 2
+    assert "could not join the run at --coordinator" in stderr
+    assert "--timeout 3 s" in stderr
