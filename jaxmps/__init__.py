@@ -13,6 +13,7 @@ Everyday API, re-exported here:
   `time_step_limits`, `StepHistory`;
 - sweeps and fits: `sweep`, `calibrate`; over devices and processes:
   `member_mesh`, `start_processes`, and `sweep_run` (a run file per member);
+  one run over several devices: `shard_particles`;
 - the two pressure stages `SemiImplicit`, `Explicit` and the gradients
   `CorrectedGradient`, `StandardGradient`, with the weight `MPSWeight`;
 - the coupling records between fluid and body stages: `Coupling`, `FluidLoad`.
@@ -37,6 +38,7 @@ from ._build import make_state as make_state
 from ._coupling import Coupling as Coupling
 from ._coupling import FluidLoad as FluidLoad
 from ._devices import member_mesh as member_mesh
+from ._devices import shard_particles as shard_particles
 from ._devices import start_processes as start_processes
 from ._driver import RunInterrupted as RunInterrupted
 from ._driver import run as run

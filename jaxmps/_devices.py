@@ -166,3 +166,44 @@ def _wait_for(coordinator: str, timeout: float, process_id, num_processes) -> No
                     "--num-processes."
                 ) from None
             time.sleep(0.2)
+
+
+# The name of the particle axis of `shard_particles`' meshes.
+PARTICLES = "particles"
+
+
+def shard_particles(state, mesh: Mesh | None = None, devices: int | None = None):
+    """`state` with its per-particle arrays (leading axis the capacity n) split in
+    equal blocks of consecutive particles over the devices of a one-axis `mesh`
+    (default: the first `devices` of `jax.devices()`, all if None), the rest
+    copied to every device. `simulate` then runs one program partitioned by XLA
+    over those devices (`benchmarks/sharded_run.py` measures what that costs).
+
+    Raises:
+        ValueError: for a mesh of more than one axis, more devices than exist, or
+            a capacity that the device count does not divide (naming both).
+    """
+    if mesh is None:
+        mesh = member_mesh(devices=devices)
+        mesh = Mesh(mesh.devices, (PARTICLES,))
+    else:
+        mesh = member_mesh(mesh)
+    n = int(state.position.shape[0])
+    count = int(mesh.devices.size)
+    if n % count:
+        raise ValueError(
+            f"The state's capacity {n} is not a multiple of the {count} devices; "
+            "shard it over a device count that divides it, or change the scene's "
+            "size (spacing) by a particle or two."
+        )
+    axis = mesh.axis_names[0]
+    split = NamedSharding(mesh, PartitionSpec(axis))
+    whole = NamedSharding(mesh, PartitionSpec())
+
+    def place(x):
+        if not isinstance(x, (jax.Array, np.ndarray)):
+            return x
+        per_particle = np.ndim(x) >= 1 and np.shape(x)[0] == n
+        return _put(np.asarray(x), split if per_particle else whole)
+
+    return jax.tree.map(place, state)

@@ -133,7 +133,22 @@ def sweep_run(
     mesh = member_mesh(mesh)
     dt = float(np.max(np.asarray(batched.dt)))
     plan = _plan(dt, t_end, save_every, 0.0, chunk_saves, max_steps_per_save)
-    writing = jax.process_index() == 0
+    index = _new_index(case, values, b, t_end, save_every, mesh)
+    writers = _open(out, case, index["members"]) if jax.process_index() == 0 else None
+    try:
+        label = f"sweep of {case.name}: {b} members" if progress else None
+        with _progress(label is not None, plan, 0.0, label or "") as bar:
+            _chunks(case, (batched, axes, b), plan, mesh, writers, out, index, bar)
+    finally:
+        for w in writers or ():
+            w.close()
+    return SweepRunResult(
+        folder=out, index=index, wall_time=_time.perf_counter() - started
+    )
+
+
+def _new_index(case: Case, values, b: int, t_end, save_every, mesh: Mesh) -> dict:
+    """The index of a sweep about to run: its settings and a file per member."""
     members = [
         {
             "file": f"member_{i:0{max(3, len(str(b - 1)))}d}.h5",
@@ -144,7 +159,7 @@ def sweep_run(
         }
         for i in range(b)
     ]
-    index = {
+    return {
         "format": INDEX_FORMAT,
         "jaxmps_version": _jaxmps_version(),
         "scene": case.name,
@@ -156,40 +171,36 @@ def sweep_run(
         "processes": jax.process_count(),
         "members": members,
     }
-    writers = _open(out, case, members) if writing else None
+
+
+def _chunks(case: Case, batch: tuple, plan, mesh, writers, out, index, bar) -> None:
+    """Write the first frame, then run and write the plan's chunks of saves (the
+    index after each), until the end or every member has failed."""
+    batched, axes, b = batch
+    members = index["members"]
     observer = _Observer(tuple(case.probes))
-    try:
-        state = None
-        failed = np.zeros(b, bool)
-        reached = np.zeros(b)
-        first = _first_rows(case, observer)
-        if writers:
-            for w in writers:
-                w.append_frames(first[0], step=first[1])
-                w.append_steps(first[2])
-                w.append_probes(first[3])
-                w.write_state(case.state)
-        label = f"sweep of {case.name}: {b} members" if progress else None
-        with _progress(label is not None, plan, 0.0, label or "") as bar:
-            for times in plan.chunks():
-                loop = loop_arguments(case, batched, None, None, times, plan.max_steps)
-                trajectory, _ = run_members(
-                    case, batched, axes, b, loop, observer, state, mesh=mesh
-                )
-                state = trajectory.state
-                _record(trajectory, writers, failed, reached, members)
-                if writing:
-                    _write_index(out, index)
-                if bar is not None:
-                    bar.update(round(float(times[-1]) - bar.n, 9))
-                if failed.all():
-                    break
-    finally:
-        for w in writers or ():
-            w.close()
-    return SweepRunResult(
-        folder=out, index=index, wall_time=_time.perf_counter() - started
-    )
+    state = None
+    failed = np.zeros(b, bool)
+    reached = np.zeros(b)
+    first = _first_rows(case, observer)
+    for w in writers or ():
+        w.append_frames(first[0], step=first[1])
+        w.append_steps(first[2])
+        w.append_probes(first[3])
+        w.write_state(case.state)
+    for times in plan.chunks():
+        loop = loop_arguments(case, batched, None, None, times, plan.max_steps)
+        trajectory, _ = run_members(
+            case, batched, axes, b, loop, observer, state, mesh=mesh
+        )
+        state = trajectory.state
+        _record(trajectory, writers, failed, reached, members)
+        if writers is not None:
+            _write_index(out, index)
+        if bar is not None:
+            bar.update(round(float(times[-1]) - bar.n, 9))
+        if failed.all():
+            break
 
 
 def _open(out: Path, case: Case, members: list[dict]) -> list[RunWriter]:

@@ -227,3 +227,37 @@ def test_a_coordinator_that_never_answers_ends_in_a_bounded_wait(tmp_path):
     assert proc.returncode == 2
     assert "could not join the run at --coordinator" in stderr
     assert "--timeout 3 s" in stderr
+
+
+def test_one_run_split_over_devices_equals_one_device():
+    """A dam break whose particle arrays are split over four devices (XLA
+    partitions the program) ends where the one-device run ends, to round-off;
+    a capacity the device count does not divide is refused."""
+    out = _python(
+        """
+        import json, jax, numpy as np, pytest, jaxmps
+        case = None
+        for k in range(200):
+            trial = jaxmps.scenes.dam_break(spacing=0.02 * (1 - 0.001 * k), dt=1e-3)
+            if trial.scene.capacity % 4 == 0:
+                case = trial
+                break
+        odd = jaxmps.scenes.dam_break(spacing=0.02)
+        if odd.scene.capacity % 4:
+            with pytest.raises(ValueError, match="not a multiple of the 4 devices"):
+                jaxmps.shard_particles(odd.state, devices=4)
+        split = jaxmps.shard_particles(case.state, devices=4)
+        assert len(split.position.sharding.device_set) == 4
+        runs = [
+            jaxmps.simulate(case.scene, case.params, s, 40, 20)
+            for s in (case.state, split)
+        ]
+        moved = float(np.max(np.abs(runs[0].state.position - case.state.position)))
+        diff = float(np.max(np.abs(runs[0].state.position - runs[1].state.position)))
+        print(json.dumps({"moved": moved, "diff": diff}))
+        """,
+        devices=4,
+    )
+    report = json.loads(out.strip().splitlines()[-1])
+    assert report["moved"] > 0.01  # the column has collapsed by a centimetre
+    assert report["diff"] < 1e-12
