@@ -31,4 +31,9 @@ python benchmarks/scaling.py --dim 3 --solvers explicit --x64 \
   --sizes 10000 100000 1000000 --out "$R/scaling_3d_x64_$TAG"
 python benchmarks/side_by_side.py --no-peer --no-pysph --sizes 7k 25k 90k \
   --out "$R/side_by_side_$TAG"
+ngpu=$(python -c "import jax; print(jax.device_count())")
+devices=1; [ "$ngpu" -gt 1 ] && devices="1 $ngpu"
+python benchmarks/sweep_scaling.py --devices $devices --out "$R/sweep_scaling_$TAG"
+[ "$ngpu" -gt 1 ] && python benchmarks/sharded_run.py --devices $devices \
+  --particles 100000 --out "$R/sharded_run_$TAG"
 echo "gpu_suite.sh: results in $R/*_$TAG.{json,md}"

@@ -49,7 +49,7 @@ def measure(devices: int, members: tuple[int, ...]) -> list[dict]:
         first_s = time.perf_counter() - t0
         runs = [
             jaxmps.sweep(case, values, n_steps, save, mesh=mesh).wall_time
-            for _ in range(2)
+            for _ in range(3)
         ]
         run_s = min(runs)
         rows.append(

@@ -261,3 +261,32 @@ def test_one_run_split_over_devices_equals_one_device():
     report = json.loads(out.strip().splitlines()[-1])
     assert report["moved"] > 0.01  # the column has collapsed by a centimetre
     assert report["diff"] < 1e-12
+
+
+def test_calibrating_a_batch_over_two_devices_equals_one_device():
+    out = _python(
+        """
+        import json, numpy as np, optax, jaxmps
+        from jaxmps import member_mesh
+        from jaxmps.calibration import Curve, Identity
+        case = jaxmps.scenes.dam_break(spacing=0.0146, dt=1e-3)
+        gravity = np.array([[0.0, -g] for g in (9.81, 8.0, 6.5, 5.0)])
+        truth = jaxmps.sweep(case, {"gravity": gravity}, 40, 10)
+        curves = [Curve(times=truth.saved["time"][i], values=truth.saved["front"][i])
+                  for i in range(4)]
+        histories = [
+            jaxmps.calibrate(case, {"viscosity": Identity()}, curves, "front", 40, 10,
+                             optimiser=optax.sgd(1e-9), iterations=2,
+                             initial={"viscosity": 1e-5}, progress=False,
+                             batch={"gravity": gravity},
+                             mesh=member_mesh(devices=d)).history
+            for d in (1, 2)
+        ]
+        print(json.dumps(histories))
+        """,
+        devices=2,
+    )
+    one, two = json.loads(out.strip().splitlines()[-1])
+    assert one["loss"][0] > 0
+    np.testing.assert_allclose(two["loss"], one["loss"], rtol=1e-12)
+    np.testing.assert_allclose(two["viscosity"], one["viscosity"], rtol=1e-12)

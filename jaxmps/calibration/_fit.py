@@ -4,6 +4,7 @@ import abc
 import json
 import time
 import warnings
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any, Literal
 
@@ -200,7 +201,7 @@ def _plain(x):
 def calibrate(
     case: Case,
     fields: dict[str, AbstractTransform | None],
-    curve: Curve,
+    curve: Curve | Sequence[Curve],
     probe: str,
     n_steps: int,
     save_every: int,
@@ -210,8 +211,11 @@ def calibrate(
     initial: dict[str, float] | None = None,
     progress: bool = True,
     checkpoint: bool | Literal["steps"] = True,
+    batch: dict[str, Any] | None = None,
+    mesh: Any = None,
 ) -> CalibrationResult:
-    """Fit Params `fields` so that probe `probe` reproduces `curve`.
+    """Fit Params `fields` so that probe `probe` reproduces `curve` (or, with
+    `batch`, each member's curve).
 
     The loss is `curve_loss` of the probe's saved time series; its gradient comes
     from reverse mode through the whole (checkpointed) rollout. Each iteration is
@@ -233,6 +237,12 @@ def calibrate(
         progress: show a progress bar (tqdm).
         checkpoint: as for `simulate`; "steps" for the least gradient memory (large
             scenes or long rollouts), at ~1.2-1.6x the gradient time.
+        batch: {Params field: (b,) values} of b experiments that share the fitted
+            fields but differ in these (a forcing frequency, a slope, ...);
+            `curve` is then a sequence of b Curves, one per member, and the loss
+            their mean. The members run as one vmapped batch per device, split
+            over the devices of `mesh` (default: all) as `sweep` splits them.
+        mesh: a one-axis `jax.sharding.Mesh` for `batch` (default: all devices).
 
     Returns:
         A `CalibrationResult`. If the rollout of an iterate fails (a
@@ -252,6 +262,11 @@ def calibrate(
     transforms, params = _starting_point(case, fields, probe, iterations, initial)
     observe = observe_probes(case.probes)
     optimiser = optax.adam(0.05) if optimiser is None else optimiser
+    if batch is not None:
+        loop = (n_steps, save_every, checkpoint)
+        value_and_grad = _batched_value_and_grad(
+            case, params, transforms, batch, curve, probe, loop, mesh
+        )
 
     def with_values(u):
         p = params
@@ -274,7 +289,8 @@ def calibrate(
         loss = curve_loss(tr.saved["time"], tr.saved[probe], curve)
         return loss, result_code(tr.result)
 
-    value_and_grad = eqx.filter_jit(jax.value_and_grad(loss_fn, has_aux=True))
+    if batch is None:
+        value_and_grad = eqx.filter_jit(jax.value_and_grad(loss_fn, has_aux=True))
     u = {name: t.inverse(get_field(params, name)) for name, t in transforms.items()}
     start = time.perf_counter()
     best, history, it, code, message, converged = _optimise(
@@ -382,3 +398,89 @@ def _optimise(value_and_grad, optimiser, u, transforms, iterations, tol, progres
         if bar is not None:
             bar.close()
     return best, history, it, code, message, converged
+
+
+def _stacked_curves(curves, b: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The members' curves as (b, m) times, values and weights, padded to the
+    longest with weight 0 (and the window applied as weight 0)."""
+    if isinstance(curves, Curve) or len(curves) != b:
+        raise ValueError(
+            f"With `batch` of {b} members, `curve` must be a sequence of {b} "
+            "Curves (one per member)."
+        )
+    m = max(len(c.times) for c in curves)
+    t, y, w = np.zeros((b, m)), np.zeros((b, m)), np.zeros((b, m))
+    for i, c in enumerate(curves):
+        k = len(c.times)
+        weights = np.ones(k) if c.weights is None else np.asarray(c.weights, float)
+        t[i, :k], y[i, :k] = c.times, c.values
+        t[i, k:], y[i, k:] = c.times[-1], c.values[-1]
+        w[i, :k] = weights * c.mask()
+    return t, y, w
+
+
+def _batched_value_and_grad(case, params, transforms, batch, curves, probe, loop, mesh):
+    """u -> ((mean loss, first failed member's result code), gradient) of a batch
+    of experiments, each device computing the loss and gradient of its share."""
+    import dataclasses
+
+    from .._devices import member_mesh
+    from ._sweep import _AXIS, _take, checked_batch
+
+    n_steps, save_every, checkpoint = loop
+    batched, axes, b = checked_batch(dataclasses.replace(case, params=params), batch)
+    t, y, w = _stacked_curves(curves, b)
+    observe = observe_probes(case.probes)
+    devices = list(member_mesh(mesh).devices.flat)
+    share = max(-(-b // len(devices)), min(2, b))
+    devices = devices[: -(-b // share)]
+
+    def share_loss(u, p, t, y, w, real):
+        def one(p, t, y, w):
+            for name, tr in transforms.items():
+                base = get_field(params, name)
+                p = set_field(p, name, tr.forward(u[name]).astype(base.dtype))
+            run = simulate(
+                case.scene,
+                p,
+                case.state,
+                n_steps,
+                save_every,
+                observe,
+                throw=False,
+                checkpoint=checkpoint,
+                batch_axis=_AXIS,
+            )
+            sim = jnp.interp(t, run.saved["time"], run.saved[probe])
+            loss = jnp.sum(w * (sim - y) ** 2) / jnp.sum(w)
+            return loss, result_code(run.result)
+
+        losses, codes = jax.vmap(one, in_axes=(axes, 0, 0, 0), axis_name=_AXIS)(
+            p, t, y, w
+        )
+        code = jnp.max(jnp.where(real, codes, 0))
+        return jnp.sum(jnp.where(real, losses, 0.0)), code
+
+    grad_fn = eqx.filter_jit(jax.value_and_grad(share_loss, has_aux=True))
+    pieces = []
+    for k, device in enumerate(devices):
+        index = np.arange(k * share, (k + 1) * share)
+        real = index < b
+        index = np.minimum(index, b - 1)
+        inputs = (_take(batched, axes, index), t[index], y[index], w[index], real)
+        dtype = jnp.asarray(get_field(params, "dt")).dtype
+        inputs = jax.tree.map(
+            lambda x: jnp.asarray(x, dtype) if x.dtype == np.float64 else x, inputs
+        )
+        pieces.append((device, jax.device_put(inputs, device)))
+
+    def value_and_grad(u):
+        parts = [grad_fn(jax.device_put(u, d), *args) for d, args in pieces]
+        loss = sum(float(v) for (v, _), _ in parts) / b
+        codes = [int(c) for (_, c), _ in parts if int(c)]
+        grad = jax.tree.map(
+            lambda *g: sum(np.asarray(x) for x in g) / b, *[g for _, g in parts]
+        )
+        return (loss, codes[0] if codes else 0), grad
+
+    return value_and_grad
