@@ -6,7 +6,7 @@ largest step, probes every 20) swept over 1, 2, 4, 8 and 16 viscosities, on 1, 2
 and 4 devices. Each device count runs in a process of its own (CPU devices are
 forced with XLA_FLAGS=--xla_force_host_platform_device_count=N before JAX
 starts; on a GPU machine, the GPUs that exist). Per row: the first call
-(compilation included) and the best of two further calls (run time), members per
+(compilation included) and the best of three further calls (run time), members per
 second and particle-steps per second. Forced CPU devices share the machine's cores:
 they show what splitting costs, not what more hardware buys.
 

@@ -290,3 +290,18 @@ def test_calibrating_a_batch_over_two_devices_equals_one_device():
     assert one["loss"][0] > 0
     np.testing.assert_allclose(two["loss"], one["loss"], rtol=1e-12)
     np.testing.assert_allclose(two["viscosity"], one["viscosity"], rtol=1e-12)
+
+
+def test_a_sweep_result_saves_to_one_file(tmp_path):
+    import h5py
+
+    case = jaxmps.scenes.hydrostatic(spacing=0.05)
+    values = {"viscosity": np.array([1e-6, 2e-6, 3e-6])}
+    res = jaxmps.sweep(case, values, times=[0.01, 0.02])
+    res.save(tmp_path / "sweep.h5")
+    with h5py.File(tmp_path / "sweep.h5") as f:
+        np.testing.assert_array_equal(f["values/viscosity"][...], values["viscosity"])
+        for name, value in res.saved.items():
+            np.testing.assert_array_equal(f[f"saved/{name}"][...], value)
+        assert f["saved/time"].shape == (3, 2)
+        assert json.loads(f.attrs["messages"]) == ["successful"] * 3

@@ -53,6 +53,29 @@ class SweepResult(eqx.Module):
         """{member index: message} of the members whose run failed."""
         return {i: m for i, m in enumerate(self.messages()) if m != "successful"}
 
+    def save(self, path) -> None:
+        """Write the sweep to one HDF5 file: /values/<field> (b, ...), /saved/<name>
+        (b, saves, ...) for a dict of observations (the probes), /result (b,) codes
+        and the attribute `messages`. In a multi-process run every process holds
+        the whole result: call it on process 0 (`jax.process_index() == 0`)."""
+        import json
+
+        import h5py
+
+        if not isinstance(self.saved, dict):
+            raise ValueError(
+                "SweepResult.save writes a dict of observations (the probes, "
+                "sweep's default `observe`)."
+            )
+        with h5py.File(path, "w") as f:
+            f.attrs["format"] = "jaxmps-sweep-result"
+            f.attrs["messages"] = json.dumps(self.messages())
+            for name, value in self.values.items():
+                f.create_dataset(f"values/{name}", data=np.asarray(value))
+            for name, value in self.saved.items():
+                f.create_dataset(f"saved/{name}", data=np.asarray(value))
+            f.create_dataset("result", data=np.asarray(self.result))
+
 
 def _host_values(name: str, value) -> np.ndarray:
     """Swept values as a float array on the host (ValueError naming the field)."""
