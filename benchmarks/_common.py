@@ -2,10 +2,12 @@
 description, the load average and the compile-and-time harness."""
 
 import dataclasses
+import json
 import math
 import os
 import platform
 import subprocess
+import sys
 import time
 from pathlib import Path
 from typing import Any
@@ -198,3 +200,26 @@ def fixed_steps(case):
     return eqx.tree_at(
         lambda c: c.scene.time_step, case, None, is_leaf=lambda x: x is None
     )
+
+
+def rows_per_device_count(script: str, counts, child_args: list[str]) -> list[dict]:
+    """Run `script --child N *child_args` in a process of its own per device count
+    N (CPU devices forced with XLA_FLAGS unless JAX sees a GPU: then the GPUs
+    there are) and gather the JSON rows (lines starting with "{") it prints."""
+    gpu = jax.default_backend() == "gpu"
+    rows = []
+    for d in counts:
+        env = dict(os.environ)
+        if not gpu:
+            env["XLA_FLAGS"] = f"--xla_force_host_platform_device_count={d}"
+        done = subprocess.run(
+            [sys.executable, script, "--child", str(d), *child_args],
+            capture_output=True,
+            text=True,
+            env=env,
+            cwd=HERE,
+        )
+        if done.returncode:
+            raise SystemExit(done.stderr[-3000:])
+        rows += [json.loads(x) for x in done.stdout.splitlines() if x[:1] == "{"]
+    return rows

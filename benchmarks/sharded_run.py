@@ -22,11 +22,10 @@ Writes `benchmarks/results/sharded_run_<backend>.{json,md}`.
 import argparse
 import json
 import math
-import os
 import re
-import subprocess
-import sys
 from pathlib import Path
+
+from _common import machine_info, rows_per_device_count
 
 HERE = Path(__file__).resolve().parent
 _BYTES = {"f64": 8, "f32": 4, "s32": 4, "u32": 4, "s64": 8, "u64": 8, "pred": 1}
@@ -125,23 +124,12 @@ def main(argv=None):
     if args.child is not None:
         measure(args.child, args.particles, counts, args.steps)
         return
-    rows = []
-    for d in counts:
-        env = dict(os.environ)
-        env["XLA_FLAGS"] = f"--xla_force_host_platform_device_count={d}"
-        env.setdefault("JAX_PLATFORMS", "cpu")
-        done = subprocess.run(
-            [sys.executable, __file__, "--child", str(d), "--particles"]
-            + [str(args.particles), "--steps", str(args.steps), "--devices"]
-            + [str(c) for c in counts],
-            capture_output=True,
-            text=True,
-            env=env,
-            cwd=HERE,
-        )
-        if done.returncode:
-            sys.exit(done.stderr[-3000:])
-        rows += [json.loads(x) for x in done.stdout.splitlines() if x[:1] == "{"]
+    rows = rows_per_device_count(
+        __file__,
+        counts,
+        ["--particles", str(args.particles), "--steps", str(args.steps)]
+        + ["--devices", *map(str, counts)],
+    )
     import numpy as np
 
     one = np.load(HERE / f".sharded_position_{counts[0]}.npy")
@@ -149,8 +137,6 @@ def main(argv=None):
         path = HERE / f".sharded_position_{r['devices']}.npy"
         r["max_position_difference_m"] = float(np.max(np.abs(np.load(path) - one)))
         path.unlink()
-    from _common import machine_info
-
     info = machine_info()
     out = (
         Path(args.out)

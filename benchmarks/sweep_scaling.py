@@ -19,10 +19,9 @@ Writes `benchmarks/results/sweep_scaling_<backend>.{json,md}`.
 
 import argparse
 import json
-import os
-import subprocess
-import sys
 from pathlib import Path
+
+from _common import machine_info, rows_per_device_count
 
 HERE = Path(__file__).resolve().parent
 MEMBERS = (1, 2, 4, 8, 16)
@@ -79,26 +78,9 @@ def main(argv=None):
     if args.child is not None:
         measure(args.child, tuple(args.members))
         return
-    rows = []
-    for d in args.devices:
-        env = dict(os.environ)
-        if env.get("JAX_PLATFORMS", "cpu") == "cpu" and not _has_gpu():
-            env["XLA_FLAGS"] = f"--xla_force_host_platform_device_count={d}"
-        done = subprocess.run(
-            [sys.executable, __file__, "--child", str(d), "--members"]
-            + [str(m) for m in args.members],
-            capture_output=True,
-            text=True,
-            env=env,
-            cwd=HERE,
-        )
-        if done.returncode:
-            sys.exit(done.stderr[-3000:])
-        rows += [
-            json.loads(line) for line in done.stdout.splitlines() if line[:1] == "{"
-        ]
-    from _common import machine_info
-
+    rows = rows_per_device_count(
+        __file__, args.devices, ["--members", *map(str, args.members)]
+    )
     info = machine_info()
     out = (
         Path(args.out)
@@ -110,15 +92,6 @@ def main(argv=None):
     )
     out.with_suffix(".md").write_text(_markdown(info, rows))
     print(f"wrote {out}.{{json,md}}")
-
-
-def _has_gpu() -> bool:
-    try:
-        import jax
-
-        return jax.default_backend() == "gpu"
-    except Exception:  # noqa: BLE001 - no backend: no GPU
-        return False
 
 
 def _markdown(info: dict, rows: list[dict]) -> str:

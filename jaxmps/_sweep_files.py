@@ -15,7 +15,17 @@ import numpy as np
 from jax.sharding import Mesh
 
 from ._devices import member_mesh
-from ._driver import RUN_SUFFIXES, _Observer, _plan, _progress, _seconds
+from ._driver import (
+    RUN_SUFFIXES,
+    RunInterrupted,
+    _deferred_signals,
+    _first_frame,
+    _Observer,
+    _plan,
+    _progress,
+    _seconds,
+    _write,
+)
 from ._result import Result, result_from_code, result_name
 from .calibration._sweep import checked_batch, loop_arguments, run_members
 from .io import RunWriter
@@ -103,7 +113,8 @@ def sweep_run(
     saves; between chunks the files and the index are written. A member that
     fails keeps its frames up to the failure (the index names the failure); the
     others go on. A member file's `/state` is the state at the end of its last
-    chunk without a failure.
+    chunk without a failure. SIGINT or SIGTERM stop the sweep once the chunk
+    being computed is written (`RunInterrupted`).
 
     Args:
         case: a `jaxmps.scenes.Case`.
@@ -137,8 +148,19 @@ def sweep_run(
     writers = _open(out, case, index["members"]) if jax.process_index() == 0 else None
     try:
         label = f"sweep of {case.name}: {b} members" if progress else None
-        with _progress(label is not None, plan, 0.0, label or "") as bar:
-            _chunks(case, (batched, axes, b), plan, mesh, writers, out, index, bar)
+        with (
+            _deferred_signals() as received,
+            _progress(label is not None, plan, 0.0, label or "") as bar,
+        ):
+            _chunks(
+                case,
+                (batched, axes, b),
+                plan,
+                mesh,
+                (writers, out, index),
+                bar,
+                received,
+            )
     finally:
         for w in writers or ():
             w.close()
@@ -173,21 +195,19 @@ def _new_index(case: Case, values, b: int, t_end, save_every, mesh: Mesh) -> dic
     }
 
 
-def _chunks(case: Case, batch: tuple, plan, mesh, writers, out, index, bar) -> None:
+def _chunks(case: Case, batch: tuple, plan, mesh, files, bar, received) -> None:
     """Write the first frame, then run and write the plan's chunks of saves (the
-    index after each), until the end or every member has failed."""
+    index after each), until the end or every member has failed. A signal in
+    `received` stops the sweep between chunks (`RunInterrupted`)."""
     batched, axes, b = batch
+    writers, out, index = files
     members = index["members"]
     observer = _Observer(tuple(case.probes))
     state = None
     failed = np.zeros(b, bool)
     reached = np.zeros(b)
-    first = _first_rows(case, observer)
     for w in writers or ():
-        w.append_frames(first[0], step=first[1])
-        w.append_steps(first[2])
-        w.append_probes(first[3])
-        w.write_state(case.state)
+        _first_frame(observer, case, case.state, w)
     for times in plan.chunks():
         loop = loop_arguments(case, batched, None, None, times, plan.max_steps)
         trajectory, _ = run_members(
@@ -201,6 +221,8 @@ def _chunks(case: Case, batch: tuple, plan, mesh, writers, out, index, bar) -> N
             bar.update(round(float(times[-1]) - bar.n, 9))
         if failed.all():
             break
+        if received:
+            raise RunInterrupted(received[0], out, float(times[-1]))
 
 
 def _open(out: Path, case: Case, members: list[dict]) -> list[RunWriter]:
@@ -222,22 +244,6 @@ def _open(out: Path, case: Case, members: list[dict]) -> list[RunWriter]:
     return writers
 
 
-def _first_rows(case: Case, observer: _Observer) -> tuple:
-    """The initial frame, step, steps and probes, one row each."""
-    from ._simulate import StepHistory
-
-    fr, step, _, values = jax.tree.map(np.asarray, observer(case.scene, case.state))
-    fr = jax.tree.map(lambda x: x[None], fr)
-    nan = np.full(1, np.nan)
-    steps = StepHistory(
-        accepted=np.zeros(1, np.int32),
-        rejected=np.zeros(1, np.int32),
-        dt_min=nan,
-        dt_max=nan,
-    )
-    return fr, step[None], steps, {k: v[None] for k, v in values.items()}
-
-
 def _record(trajectory, writers, failed, reached, members) -> None:
     """Write each member's rows of a chunk (up to its first failure) and update
     `failed`, `reached` and the members' index entries."""
@@ -253,12 +259,8 @@ def _record(trajectory, writers, failed, reached, members) -> None:
             lambda x, i=i, k=keep: x[i][:k], (fr, steps, values, history)
         )
         if writers:
-            w = writers[i]
-            w.append_frames(rows[0], step=rows[1])
-            w.append_steps(rows[3])
-            w.append_probes(rows[2])
-            if not len(bad):
-                w.write_state(jax.tree.map(lambda x, i=i: x[i], trajectory.state))
+            final = None if len(bad) else jax.tree.map(lambda x: x[i], trajectory.state)
+            _write(writers[i], rows[0], rows[1], rows[2], final, rows[3])
         reached[i] = float(np.asarray(rows[0].time)[-1])
         code = int(codes[bad[0]]) if len(bad) else 0
         failed[i] = code != 0

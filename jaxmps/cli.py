@@ -79,11 +79,7 @@ def _cmd_run(args) -> int:
     from ._driver import check_output
 
     overrides = _parse_overrides(args.set)
-    for name in ("t_end", "save_every"):
-        value = getattr(args, name)
-        if value is not None and not (math.isfinite(value) and value > 0):
-            flag = "--" + name.replace("_", "-")
-            raise UsageError(f"{flag} must be positive and finite [s], got {value!r}.")
+    _check_times(args)
     restart = args.restart is not None
     source = Path(args.restart) if args.restart else None  # --restart RUN.h5
     if args.out:
@@ -160,6 +156,15 @@ def _cmd_run(args) -> int:
     return 0
 
 
+def _check_times(args) -> None:
+    """--t-end and --save-every: positive and finite when given (UsageError)."""
+    for name in ("t_end", "save_every"):
+        value = getattr(args, name)
+        if value is not None and not (math.isfinite(value) and value > 0):
+            flag = "--" + name.replace("_", "-")
+            raise UsageError(f"{flag} must be positive and finite [s], got {value!r}.")
+
+
 def _parse_vary(items: list[str]) -> dict:
     """`--vary NAME=V1,V2,...` items as {name: [values]} (UsageError if malformed)."""
     varied = {}
@@ -213,11 +218,7 @@ def _cmd_sweep(args) -> int:
 
     overrides = _parse_overrides(args.set)
     varied = _parse_vary(args.vary)
-    for name in ("t_end", "save_every"):
-        value = getattr(args, name)
-        if value is not None and not (math.isfinite(value) and value > 0):
-            flag = "--" + name.replace("_", "-")
-            raise UsageError(f"{flag} must be positive and finite [s], got {value!r}.")
+    _check_times(args)
     out = check_folder(args.out or f"{args.scene}_sweep", args.overwrite)
     jax = _start_jax(args.x64, platform_only=args.coordinator is not None)
     _start_processes(args, jax)
@@ -237,17 +238,22 @@ def _cmd_sweep(args) -> int:
             f"{mesh.devices.size} device(s) in {jax.process_count()} process(es), "
             f"t_end={args.t_end if args.t_end is not None else case.t_end:g} s"
         )
-    result = sweep_run(
-        case,
-        values,
-        t_end=args.t_end,
-        out=out,
-        save_every=args.save_every,
-        mesh=mesh,
-        max_steps_per_save=args.max_steps_per_save,
-        overwrite=args.overwrite,
-        progress=lead and not args.quiet,
-    )
+    try:
+        result = sweep_run(
+            case,
+            values,
+            t_end=args.t_end,
+            out=out,
+            save_every=args.save_every,
+            mesh=mesh,
+            max_steps_per_save=args.max_steps_per_save,
+            overwrite=args.overwrite,
+            progress=lead and not args.quiet,
+        )
+    except KeyboardInterrupt as e:
+        signum = getattr(e, "signal", 2)
+        print(f"jaxmps sweep: {e or 'interrupted'}", file=sys.stderr)
+        return 128 + signum
     failed = [m for m in result.index["members"] if m.get("code", 0)]
     if lead:
         print(
@@ -454,21 +460,7 @@ def _parser() -> argparse.ArgumentParser:
         epilog=_RUN_FILES,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    p.add_argument("scene", nargs="?", default="dam_break")
-    p.add_argument(
-        "--set",
-        action="append",
-        default=[],
-        metavar="NAME=VALUE",
-        help="override a scene parameter (repeatable)",
-    )
-    p.add_argument("--t-end", type=float, default=None, help="simulated time [s]")
-    p.add_argument(
-        "--save-every",
-        type=float,
-        default=None,
-        help="simulated time between saved frames [s]",
-    )
+    _scene_and_times(p)
     p.add_argument(
         "--out", default=None, help="run file, .h5 or .hdf5 (default SCENE.h5)"
     )
@@ -526,22 +518,9 @@ with its devices, run one sweep together: start the same command in each with
 its own --process-id; process 0 writes the files."""
 
 
-def _sweep_parser(sub, debug) -> None:
-    p = sub.add_parser(
-        "sweep",
-        help="run a scene once per parameter value, one vmapped batch over devices",
-        parents=[debug],
-        epilog=_SWEEP,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
-    )
+def _scene_and_times(p) -> None:
+    """The arguments `run` and `sweep` share: the scene, its settings, the times."""
     p.add_argument("scene", nargs="?", default="dam_break")
-    p.add_argument(
-        "--vary",
-        action="append",
-        default=[],
-        metavar="NAME=V1,V2,...",
-        help="a Params field and its values (repeatable: every combination)",
-    )
     p.add_argument(
         "--set",
         action="append",
@@ -555,6 +534,24 @@ def _sweep_parser(sub, debug) -> None:
         type=float,
         default=None,
         help="simulated time between saved frames [s]",
+    )
+
+
+def _sweep_parser(sub, debug) -> None:
+    p = sub.add_parser(
+        "sweep",
+        help="run a scene once per parameter value, one vmapped batch over devices",
+        parents=[debug],
+        epilog=_SWEEP,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    _scene_and_times(p)
+    p.add_argument(
+        "--vary",
+        action="append",
+        default=[],
+        metavar="NAME=V1,V2,...",
+        help="a Params field and its values (repeatable: every combination)",
     )
     p.add_argument("--out", default=None, help="folder (default SCENE_sweep)")
     p.add_argument(

@@ -169,7 +169,7 @@ def _free_port() -> int:
         return s.getsockname()[1]
 
 
-def _sweep_process(out: Path, extra: list[str], devices: int = 1):
+def _sweep_process(out: Path, extra: list[str], devices: int = 1, t_end="0.02"):
     env = {
         **os.environ,
         "XLA_FLAGS": f"--xla_force_host_platform_device_count={devices}",
@@ -178,7 +178,7 @@ def _sweep_process(out: Path, extra: list[str], devices: int = 1):
     }
     argv = [sys.executable, "-m", "jaxmps.cli", "sweep", "hydrostatic"]
     argv += ["--vary", "viscosity=1e-6,2e-6,3e-6", "--set", "spacing=0.04"]
-    argv += ["--t-end", "0.02", "--save-every", "0.01", "--quiet", "--x64"]
+    argv += ["--t-end", t_end, "--save-every", "0.01", "--quiet", "--x64"]
     argv += ["--out", str(out)] + extra
     return subprocess.Popen(
         argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env
@@ -305,3 +305,27 @@ def test_a_sweep_result_saves_to_one_file(tmp_path):
             np.testing.assert_array_equal(f[f"saved/{name}"][...], value)
         assert f["saved/time"].shape == (3, 2)
         assert json.loads(f.attrs["messages"]) == ["successful"] * 3
+
+
+def test_a_sweep_stopped_by_sigint_keeps_its_chunks(tmp_path):
+    """SIGINT during a sweep of many chunks: the chunk being computed is written,
+    the sweep stops there (exit 130) and the index says how far each member got,
+    which its run file holds."""
+    import signal
+    import time
+
+    folder = tmp_path / "stopped"
+    proc = _sweep_process(folder, [], t_end="5.0")  # 500 saves, 25 chunks
+    deadline = time.monotonic() + 120
+    while not (folder / "sweep.json").exists() and time.monotonic() < deadline:
+        time.sleep(0.02)
+    proc.send_signal(signal.SIGINT)
+    _, stderr = proc.communicate(timeout=120)
+    assert proc.returncode == 130, stderr[-2000:]
+    assert "stopped by SIGINT" in stderr
+    members = json.loads((folder / "sweep.json").read_text())["members"]
+    for m in members:
+        assert 0 < m["t_reached"] < 5.0
+        data = jaxmps.io.read_run(folder / m["file"])
+        assert data.frames["time"][-1] == pytest.approx(m["t_reached"])
+        assert data.state["time"] == pytest.approx(m["t_reached"])
