@@ -271,11 +271,10 @@ def test_calibrating_a_batch_over_two_devices_equals_one_device():
         from jaxmps.calibration import Curve, Identity
         case = jaxmps.scenes.dam_break(spacing=0.0146, dt=1e-3)
         gravity = np.array([[0.0, -g] for g in (9.81, 8.0, 6.5, 5.0)])
-        truth = jaxmps.sweep(case, {"gravity": gravity}, 40, 10)
-        curves = [Curve(times=truth.saved["time"][i], values=truth.saved["front"][i])
-                  for i in range(4)]
+        t = np.linspace(0.005, 0.02, 4)
+        curves = [Curve(times=t, values=0.15 + 0.1 * k * t) for k in range(4)]
         histories = [
-            jaxmps.calibrate(case, {"viscosity": Identity()}, curves, "front", 40, 10,
+            jaxmps.calibrate(case, {"viscosity": Identity()}, curves, "front", 20, 5,
                              optimiser=optax.sgd(1e-9), iterations=2,
                              initial={"viscosity": 1e-5}, progress=False,
                              batch={"gravity": gravity},
