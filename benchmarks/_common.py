@@ -223,3 +223,16 @@ def rows_per_device_count(script: str, counts, child_args: list[str]) -> list[di
             raise SystemExit(done.stderr[-3000:])
         rows += [json.loads(x) for x in done.stdout.splitlines() if x[:1] == "{"]
     return rows
+
+
+def write_rows(name: str, out: str | None, rows: list[dict], markdown) -> Path:
+    """Write `rows` with the machine's description to `out` (default
+    results/<name>_<backend>) as .json, and `markdown(info, rows)` as .md."""
+    info = machine_info()
+    path = Path(out) if out else HERE / "results" / f"{name}_{info['backend']}"
+    path.with_suffix(".json").write_text(
+        json.dumps(dict(machine=info, rows=rows), indent=1)
+    )
+    path.with_suffix(".md").write_text(markdown(info, rows))
+    print(f"wrote {path}.{{json,md}}")
+    return path

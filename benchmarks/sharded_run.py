@@ -25,7 +25,7 @@ import math
 import re
 from pathlib import Path
 
-from _common import machine_info, rows_per_device_count
+from _common import rows_per_device_count, write_rows
 
 HERE = Path(__file__).resolve().parent
 _BYTES = {"f64": 8, "f32": 4, "s32": 4, "u32": 4, "s64": 8, "u64": 8, "pred": 1}
@@ -137,17 +137,7 @@ def main(argv=None):
         path = HERE / f".sharded_position_{r['devices']}.npy"
         r["max_position_difference_m"] = float(np.max(np.abs(np.load(path) - one)))
         path.unlink()
-    info = machine_info()
-    out = (
-        Path(args.out)
-        if args.out
-        else HERE / "results" / (f"sharded_run_{info['backend']}")
-    )
-    out.with_suffix(".json").write_text(
-        json.dumps(dict(machine=info, rows=rows), indent=1)
-    )
-    out.with_suffix(".md").write_text(_markdown(info, rows))
-    print(f"wrote {out}.{{json,md}}")
+    write_rows("sharded_run", args.out, rows, _markdown)
 
 
 def _markdown(info: dict, rows: list[dict]) -> str:

@@ -21,7 +21,7 @@ import argparse
 import json
 from pathlib import Path
 
-from _common import machine_info, rows_per_device_count
+from _common import rows_per_device_count, write_rows
 
 HERE = Path(__file__).resolve().parent
 MEMBERS = (1, 2, 4, 8, 16)
@@ -81,17 +81,7 @@ def main(argv=None):
     rows = rows_per_device_count(
         __file__, args.devices, ["--members", *map(str, args.members)]
     )
-    info = machine_info()
-    out = (
-        Path(args.out)
-        if args.out
-        else HERE / "results" / (f"sweep_scaling_{info['backend']}")
-    )
-    out.with_suffix(".json").write_text(
-        json.dumps(dict(machine=info, rows=rows), indent=1)
-    )
-    out.with_suffix(".md").write_text(_markdown(info, rows))
-    print(f"wrote {out}.{{json,md}}")
+    write_rows("sweep_scaling", args.out, rows, _markdown)
 
 
 def _markdown(info: dict, rows: list[dict]) -> str:

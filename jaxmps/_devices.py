@@ -1,6 +1,6 @@
-"""Devices a batch of members runs on: a one-axis mesh over the member axis, the
-members placed on it, and results brought back to the host (from every process
-of a multi-process run)."""
+"""Devices: the one-axis mesh a batch of members is split over, results brought
+back to the host (from every process of a multi-process run), joining a
+multi-process run, and one run's particle arrays split over devices."""
 
 import math
 
@@ -49,28 +49,6 @@ def member_mesh(mesh: Mesh | None = None, devices: int | None = None) -> Mesh:
             "--xla_force_host_platform_device_count=N before JAX starts)."
         )
     return Mesh(np.asarray(available[:devices]), (MEMBERS,))
-
-
-def padded_count(members: int, mesh: Mesh) -> int:
-    """`members` rounded up to a whole number per device of `mesh`."""
-    size = mesh.devices.size
-    return size * math.ceil(members / size)
-
-
-def place_members(tree, axes, mesh: Mesh):
-    """`tree` on `mesh`: the leaves whose `axes` entry is 0 split along their
-    leading (member) axis, the others (None) copied to every device. Every process
-    of a multi-process run passes the same `tree`."""
-    axis = mesh.axis_names[0]
-    split = NamedSharding(mesh, PartitionSpec(axis))
-    whole = NamedSharding(mesh, PartitionSpec())
-
-    def place(x, a):
-        if not isinstance(x, (jax.Array, np.ndarray, np.generic)):
-            return x
-        return _put(np.asarray(x), split if a == 0 else whole)
-
-    return jax.tree.map(place, tree, axes, is_leaf=lambda x: x is None)
 
 
 def _put(value: np.ndarray, sharding: NamedSharding) -> jax.Array:

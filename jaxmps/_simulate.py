@@ -99,7 +99,7 @@ def simulate(
     max_steps: int | None = None,
     throw: bool = True,
     checkpoint: bool | Literal["steps"] = True,
-    batch_axis: str | tuple[str, ...] | None = None,
+    batch_axis: str | None = None,
 ) -> Trajectory:
     """Run `n_steps` steps, observing every `save_every` steps; or run to each of
     `times`, observing there.
@@ -376,7 +376,7 @@ def _advance(
     n_target: int | None,
     max_steps: int,
     checkpoints: int,
-    batch_axis: str | tuple[str, ...] | None,
+    batch_axis: str | None,
 ) -> tuple[State, StepHistory]:
     """Steps from `state` until its time reaches `t_target` (landing on it) or
     `n_target` more steps are taken, in at most `max_steps` attempts."""
@@ -478,7 +478,7 @@ def _simulate(
     max_steps: int,
     throw: bool = True,
     checkpoint: bool | Literal["steps"] = True,
-    batch_axis: str | tuple[str, ...] | None = None,
+    batch_axis: str | None = None,
 ) -> Trajectory:
     if times is None and scene.time_step is None:
         block = _fixed_block(scene, params, save_every, observe, checkpoint, batch_axis)
@@ -524,7 +524,7 @@ def _fixed_block(
     save_every: int,
     observe: Callable[[Scene, State], PyTree],
     checkpoint: bool | Literal["steps"],
-    batch_axis: str | tuple[str, ...] | None,
+    batch_axis: str | None,
 ):
     """A save of `save_every` steps of `Params.dt`, as a `lax.scan`."""
 

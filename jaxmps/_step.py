@@ -47,7 +47,7 @@ def _step(
     scene: Scene,
     params: Params,
     state: State,
-    batch_axis: str | tuple[str, ...] | None = None,
+    batch_axis: str | None = None,
     dt: Scalar | None = None,
 ) -> tuple[State, StepInfo]:
     """One step of `dt` (None: `params.dt`). `params.dt` stays the reference step
@@ -163,7 +163,7 @@ def _neighbours(
     position: Positions,
     active: Mask,
     cache: neighbours.NeighbourCache | None = None,
-    batch_axis: str | tuple[str, ...] | None = None,
+    batch_axis: str | None = None,
 ) -> tuple[neighbours.Neighbours, operators.Pairs]:
     """Neighbour lists at `position` (the carried ones while valid) and their pair
     geometry."""
@@ -410,7 +410,7 @@ def step(
     state: State,
     *,
     dt: Scalar | None = None,
-    batch_axis: str | tuple[str, ...] | None = None,
+    batch_axis: str | None = None,
 ) -> tuple[State, StepInfo]:
     """Advance `state` by one time step: `dt` if given, else `params.dt`, or with
     adaptive steps (`Scene.time_step`) `time_step(scene, params, state)` (not
@@ -443,7 +443,7 @@ def _jit_step(
     scene: Scene,
     params: Params,
     state: State,
-    batch_axis: str | tuple[str, ...] | None,
+    batch_axis: str | None,
     dt: Scalar | None,
 ) -> tuple[State, StepInfo]:
     if dt is None and scene.time_step is not None:

@@ -260,37 +260,16 @@ def calibrate(
     import optax
 
     transforms, params = _starting_point(case, fields, probe, iterations, initial)
-    observe = observe_probes(case.probes)
     optimiser = optax.adam(0.05) if optimiser is None else optimiser
-    if batch is not None:
-        loop = (n_steps, save_every, checkpoint)
+    loop = (n_steps, save_every, checkpoint)
+    if batch is None:
+        value_and_grad = _single_value_and_grad(
+            case, params, transforms, curve, probe, loop
+        )
+    else:
         value_and_grad = _batched_value_and_grad(
             case, params, transforms, batch, curve, probe, loop, mesh
         )
-
-    def with_values(u):
-        p = params
-        for name, t in transforms.items():
-            base = get_field(params, name)
-            p = set_field(p, name, t.forward(u[name]).astype(base.dtype))
-        return p
-
-    def loss_fn(u):
-        tr = simulate(
-            case.scene,
-            with_values(u),
-            case.state,
-            n_steps,
-            save_every,
-            observe,
-            throw=False,
-            checkpoint=checkpoint,
-        )
-        loss = curve_loss(tr.saved["time"], tr.saved[probe], curve)
-        return loss, result_code(tr.result)
-
-    if batch is None:
-        value_and_grad = eqx.filter_jit(jax.value_and_grad(loss_fn, has_aux=True))
     u = {name: t.inverse(get_field(params, name)) for name, t in transforms.items()}
     start = time.perf_counter()
     best, history, it, code, message, converged = _optimise(
@@ -298,7 +277,7 @@ def calibrate(
     )
     status = "rollout_failed" if message else "converged" if converged else ""
     # Adam's momentum overshoots near the optimum: return the best iterate seen.
-    fitted = with_values(best[1])
+    fitted = _with_values(params, params, transforms, best[1])
     return CalibrationResult(
         fields=tuple(transforms),
         values={name: _plain(get_field(fitted, name)) for name in transforms},
@@ -313,6 +292,42 @@ def calibrate(
         result=code,
         message=message,
     )
+
+
+def _with_values(params, member, transforms, u):
+    """`member` (Params: the starting ones, or a batch member's) with the fitted
+    fields set from the unconstrained variables `u`, in the dtypes of `params`."""
+    for name, t in transforms.items():
+        base = get_field(params, name)
+        member = set_field(member, name, t.forward(u[name]).astype(base.dtype))
+    return member
+
+
+def _rollout(case: Case, params, loop: tuple, batch_axis=None):
+    """The probes' rollout a loss reads: (n_steps, save_every, checkpoint) `loop`."""
+    n_steps, save_every, checkpoint = loop
+    return simulate(
+        case.scene,
+        params,
+        case.state,
+        n_steps,
+        save_every,
+        observe_probes(case.probes),
+        throw=False,
+        checkpoint=checkpoint,
+        batch_axis=batch_axis,
+    )
+
+
+def _single_value_and_grad(case, params, transforms, curve, probe, loop):
+    """u -> ((loss, result code), gradient) against one curve, jitted."""
+
+    def loss_fn(u):
+        run = _rollout(case, _with_values(params, params, transforms, u), loop)
+        loss = curve_loss(run.saved["time"], run.saved[probe], curve)
+        return loss, result_code(run.result)
+
+    return eqx.filter_jit(jax.value_and_grad(loss_fn, has_aux=True))
 
 
 def _starting_point(case: Case, fields, probe: str, iterations, initial):
@@ -425,32 +440,20 @@ def _batched_value_and_grad(case, params, transforms, batch, curves, probe, loop
     import dataclasses
 
     from .._devices import member_mesh
-    from ._sweep import _AXIS, _take, checked_batch
+    from ._sweep import _AXIS, _take, checked_batch, device_shares
 
-    n_steps, save_every, checkpoint = loop
     batched, axes, b = checked_batch(dataclasses.replace(case, params=params), batch)
     t, y, w = _stacked_curves(curves, b)
-    observe = observe_probes(case.probes)
-    devices = list(member_mesh(mesh).devices.flat)
-    share = max(-(-b // len(devices)), min(2, b))
-    devices = devices[: -(-b // share)]
+    local = [
+        d
+        for d in member_mesh(mesh).devices.flat
+        if d.process_index == jax.process_index()
+    ]
+    devices, share = device_shares(b, local)
 
     def share_loss(u, p, t, y, w, real):
         def one(p, t, y, w):
-            for name, tr in transforms.items():
-                base = get_field(params, name)
-                p = set_field(p, name, tr.forward(u[name]).astype(base.dtype))
-            run = simulate(
-                case.scene,
-                p,
-                case.state,
-                n_steps,
-                save_every,
-                observe,
-                throw=False,
-                checkpoint=checkpoint,
-                batch_axis=_AXIS,
-            )
+            run = _rollout(case, _with_values(params, p, transforms, u), loop, _AXIS)
             sim = jnp.interp(t, run.saved["time"], run.saved[probe])
             loss = jnp.sum(w * (sim - y) ** 2) / jnp.sum(w)
             return loss, result_code(run.result)

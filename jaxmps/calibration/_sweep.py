@@ -231,11 +231,7 @@ def run_members(
     state = case.state if state is None else state
     state_axes = jax.tree.map(lambda _: state_axis, state)
     per_call = members if chunk is None else min(int(chunk), members)
-    # Two members at least per device: XLA compiles a batch of one differently
-    # (its values differ at round-off from those of a larger batch).
-    share = max(-(-per_call // len(devices)), min(2, per_call))
-    if jax.process_count() == 1:
-        devices = devices[: -(-per_call // share)]
+    devices, share = device_shares(per_call, devices, jax.process_count() > 1)
     pieces, first = [], 0.0
     for lo in range(0, members, share * len(devices)):
         t0 = time.perf_counter()
@@ -259,6 +255,16 @@ def run_members(
             first = time.perf_counter() - t0
     whole = jax.tree.map(lambda *xs: np.concatenate(xs)[:members], *pieces)
     return whole, first
+
+
+def device_shares(members: int, devices: list, every: bool = False):
+    """The devices a batch of `members` runs on and the members per device: two
+    at least (XLA compiles a batch of one differently: its values differ at
+    round-off from those of a larger batch), so fewer devices when there are not
+    enough members, unless `every` (a multi-process run, where each process must
+    hold a share)."""
+    share = max(-(-members // len(devices)), min(2, members))
+    return (devices if every else devices[: -(-members // share)]), share
 
 
 def _gathered(runs: dict[int, Trajectory], devices: list) -> Trajectory:

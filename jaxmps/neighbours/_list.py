@@ -273,7 +273,7 @@ def reuse_or_build(
     radius: float,
     skin: float,
     cache: NeighbourCache,
-    batch_axis: str | tuple[str, ...] | None = None,
+    batch_axis: str | None = None,
 ) -> Neighbours:
     """Neighbour lists within `radius` at `position`: the cached lists when they
     still hold every such pair, else a new search (`build` with radius + skin).
@@ -288,8 +288,7 @@ def reuse_or_build(
     The choice is a `lax.cond`. Under a plain `vmap` it becomes a select that runs
     the search as well, so batched runs keep the results but not the saving. With
     `batch_axis`, the name of the enclosing `vmap`'s axis (`jax.vmap(...,
-    axis_name=...)`, as `jaxmps.sweep` runs; a tuple adds the axes of an enclosing
-    `shard_map`), the members decide together: the
+    axis_name=...)`, as `jaxmps.sweep` runs), the members decide together: the
     carried lists are used when every member may use them, else every member
     searches, and the choice stays a branch.
     """
@@ -298,12 +297,8 @@ def reuse_or_build(
     moved = jnp.max(jnp.where(active, moved, 0.0))
     reusable = cache.valid & jnp.all(active == cache.active) & (4 * moved < skin**2)
     if batch_axis is not None:
-        # One decision for the whole batch: over each named axis in turn (the
-        # members of a device, then the devices of a sharded sweep).
-        flag = reusable.astype(jnp.int32)
-        for name in (batch_axis,) if isinstance(batch_axis, str) else batch_axis:
-            flag = jax.lax.pmin(flag, name)
-        reusable = flag > 0
+        # One decision for the whole batch.
+        reusable = jax.lax.pmin(reusable.astype(jnp.int32), batch_axis) > 0
 
     def carried():
         _, outside = cell_coordinates(grid, x)
@@ -329,7 +324,7 @@ def search(
     radius: float,
     skin: float,
     cache: NeighbourCache | None = None,
-    batch_axis: str | tuple[str, ...] | None = None,
+    batch_axis: str | None = None,
 ) -> Neighbours:
     """The neighbour stage of a step: lists of every pair closer than `radius`,
     searched within radius + `skin` so that they can be carried to the next step.
