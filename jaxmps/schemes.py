@@ -124,11 +124,14 @@ def explicit(solver: Explicit | None = None) -> Scheme:
     )
 
 
-def standard_mps(solver: SemiImplicit | None = None) -> Scheme:
+def standard_mps(
+    solver: SemiImplicit | None = None, surface_head: float = 0.0
+) -> Scheme:
     """The standard MPS of seed 001 §2 (Koshizuka's textbook), the baseline the
     high-accuracy scheme is measured against: weight r_e/r - 1 at r_e = 2.4 l0, the
     lambda Laplacian, the source rho0/dt^2 (n0 - n*)/n0 as printed, Koshizuka's
-    minimum-pressure gradient, negative pressures clamped.
+    minimum-pressure gradient, negative pressures clamped, P = 0 at the surface
+    particles (`surface_head`, replacing the solver's).
 
     Kept to reproduce the seed's comparison, not for production: its pressure
     noise in the 0.2 m hydrostatic tank at l0 = 1 cm, dt = 1 ms is ~125 % of rho g H
@@ -137,6 +140,7 @@ def standard_mps(solver: SemiImplicit | None = None) -> Scheme:
     # Choice: the collision guard stays on (seed 001 §2 names none). Without it this
     # scheme blows up within 1 s of that tank.
     base = SemiImplicit() if solver is None else solver
+    base = dataclasses.replace(base, surface_head=surface_head)
     return standard().replace(
         r_e=2.4,
         gradient=MinimumPressureGradient(),
@@ -170,7 +174,7 @@ def high_accuracy(
       in `HigherOrderLaplacian`); False (default) keeps the printed scales.
 
     `solver` supplies the remaining solver settings (tolerance, iteration cap,
-    preconditioner); its source and clamping are replaced.
+    preconditioner, surface head); its source and clamping are replaced.
     """
     if ecs and not hs:
         raise ValueError("ecs=True needs hs=True (the ECS term is part of HS).")

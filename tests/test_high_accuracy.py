@@ -335,7 +335,7 @@ def test_sloped_tank_geometry_and_run_up_probe():
 
 def _bottom_pressure_late(scheme, **overrides):
     """Bottom probe of the 0.2 m still-water tank (l0 = 1 cm) over 0.5-1 s, and its
-    analytic value rho g (H - l0/2 - y_p), y_p the mean initial height of the
+    analytic value rho g (H - y_p), y_p the mean initial height of the
     probed particles (as in validation/accuracy_vs_cost.py)."""
     case = jaxmps.scenes.hydrostatic(
         spacing=0.01, width=0.2, depth=0.2, scheme=scheme, **overrides

@@ -50,6 +50,60 @@ def test_operator_symmetric_positive_definite_and_cg_matches_dense(rng):
     assert np.all(np.asarray(p)[~np.asarray(in_system)] == 0)
 
 
+def test_surface_values_are_dirichlet_data_of_the_solve(rng):
+    """Surface particles keep the values they are given, and the system rows solve
+    A p = b + (the surface values' share of the Laplacian): with no source and the
+    same value c on every surface particle the solution is c everywhere (the
+    discrete Laplace equation's constant), and in general it equals the dense
+    solve of that system."""
+    scene, state, pairs, surface = _system(rng)
+    n = state.position.shape[0]
+    kind, active = state.kind, state.active
+    matvec, _, in_system = pressure_system(pairs, kind, active, surface)
+    carries = np.asarray(active) & np.isin(np.asarray(kind), [0, 1])
+    fixed = carries & ~np.asarray(in_system)
+    assert fixed.any() and np.asarray(in_system).any()
+    value = jnp.where(jnp.asarray(fixed), 250.0, 0.0)
+    p, info = solve_pressure(
+        pairs,
+        kind,
+        active,
+        surface,
+        jnp.zeros(n),
+        jnp.zeros(n),
+        1e-12,
+        0.0,
+        5000,
+        boundary=value,
+    )
+    assert bool(info.converged)
+    np.testing.assert_allclose(np.asarray(p)[carries], 250.0, rtol=1e-9)
+    # Arbitrary values and source: against the dense system.
+    value = jnp.where(jnp.asarray(fixed), jnp.asarray(rng.normal(size=n)), 0.0)
+    b = jnp.asarray(rng.normal(size=n))
+    p, _ = solve_pressure(
+        pairs,
+        kind,
+        active,
+        surface,
+        b,
+        jnp.zeros(n),
+        1e-12,
+        0.0,
+        5000,
+        boundary=value,
+    )
+    a = np.asarray(jax.vmap(matvec)(jnp.eye(n)).T)
+    w = np.where(np.asarray(pairs.valid), np.asarray(pairs.weight), 0.0)
+    index = np.asarray(pairs.index)
+    padded = np.append(np.asarray(value), 0.0)
+    rhs = np.asarray(b) + (w * padded[index]).sum(axis=1)
+    rows = np.asarray(in_system)
+    dense = np.linalg.solve(a, np.where(rows, rhs, 0.0))
+    np.testing.assert_allclose(np.asarray(p)[rows], dense[rows], rtol=1e-8, atol=1e-9)
+    np.testing.assert_array_equal(np.asarray(p)[fixed], np.asarray(value)[fixed])
+
+
 def test_solve_gradient_is_implicit_and_matches_finite_differences(rng):
     scene, state, pairs, surface = _system(rng)
     n = state.position.shape[0]

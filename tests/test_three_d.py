@@ -8,8 +8,8 @@ import jaxmps
 
 def test_hydrostatic_3d_bottom_pressure():
     """Coarse 3-D tank (8 layers deep): time-averaged pressure of the interior bottom
-    row within 5 % of rho g (H - l0/2 - y) (P = 0 sits at the surface-particle
-    centres, so the effective surface is H - l0/2; measured -0.9 %)."""
+    row within 5 % of rho g (H - y), the weight of the water above (the surface
+    particles carry the head of the water above them, `SemiImplicit.surface_head`)."""
     l0, width, depth = 0.02, 0.12, 0.16
     case = jaxmps.scenes.hydrostatic(dim=3, spacing=l0, width=width, depth=depth)
     n = int(0.6 / float(case.params.dt)) // 20 * 20
@@ -21,7 +21,7 @@ def test_hydrostatic_3d_bottom_pressure():
     fluid = np.asarray(case.state.kind) == int(jaxmps.Kind.FLUID)
     inner = np.all((x0[:, :-1] > 1.5 * l0) & (x0[:, :-1] < width - 1.5 * l0), axis=1)
     bottom = fluid & inner & (x0[:, -1] < l0)
-    ref = 1000.0 * 9.81 * (depth - 0.5 * l0 - y[bottom])
+    ref = 1000.0 * 9.81 * (depth - y[bottom])
     assert p[bottom].mean() == pytest.approx(ref.mean(), rel=0.05)
     assert float(np.abs(np.asarray(tr.state.velocity)).max()) < 0.3
 

@@ -16,8 +16,9 @@ For each solver ("semi_implicit", "explicit") and three resolutions of two test 
 * Hydrostatic tank (`jaxmps.scenes.hydrostatic`, 0.2 m x 0.2 m, spacing 0.02 / 0.01 /
   0.005 m), run to t = 1 s. `pressure_bottom` (mean pressure of the fluid within
   1.5 l0 of (width/2, l0/2)) is time-averaged over the saves with t >= 0.5 s, and
-  compared with rho g (H - l0/2 - y_p) (MPS holds P = 0 at the centres of the surface
-  particles, so the effective surface is H - l0/2, see `tests/test_step.py`):
+  compared with rho g (H - y_p), the weight of the water above the probe (see
+  `scenes.hydrostatic_pressure`; the explicit solver, which holds P = 0 at the
+  surface particles' centres, reads up to about l0/2 of head below it):
   - "nominal": y_p = l0/2 (the probe's centre), as in the tests;
   - "probe y" (the one plotted): y_p = the mean *initial* height of the particles the
     probe averages over (the first and second particle rows fall inside the 1.5 l0
@@ -237,7 +238,7 @@ def run_case(case_name: str, solver: str, spacing: float, args) -> dict:
         near = fluid & (d2 < bottom.radius**2)
         y0 = float(pos[near, -1].mean())
         y_t = float(np.mean(saved["bottom_probe_y"][late]))
-        surface = depth - 0.5 * l0
+        surface = depth  # the weight of the water above y_p
         refs = {"nominal": 0.5 * l0, "probe_y0": y0, "probe_y_t": y_t}
         for key, y in refs.items():
             record[f"p_ref_{key}"] = RHO * G * (surface - y)
@@ -363,7 +364,7 @@ def markdown(data: dict) -> str:
             "## Hydrostatic tank 0.2 m x 0.2 m (to t = 1 s; `pressure_bottom` "
             "averaged over t >= 0.5 s)",
             "",
-            "Reference rho g (H - l0/2 - y_p). **err (probe y)**: y_p = mean initial "
+            "Reference rho g (H - y_p). **err (probe y)**: y_p = mean initial "
             "height of the probed particles (plotted); **err (nominal)**: y_p = l0/2.",
             "",
             "| solver | spacing [m] | particles (fluid) | dt [ms] | steps "
@@ -429,7 +430,7 @@ def plot(data: dict, path: Path):
         "dam_break": "dam break: max |Z/Z_ref - 1| at T = 1, 1.5, 2, 2.5\n"
         "filled: vs Martin & Moyce 1952; open: vs SOLA-VOF",
         "hydrostatic": "hydrostatic 0.2 m tank: "
-        "|P_bottom / rho g (H - l0/2 - y_p) - 1|\n"
+        "|P_bottom / rho g (H - y_p) - 1|\n"
         "P_bottom averaged over 0.5-1 s; y_p = mean initial probe height",
         "standing_wave": "standing wave 0.4 m x 0.2 m, A = 2 cm:\n"
         "|T / T_linear - 1| of the surface mode over 1.6 s",

@@ -64,16 +64,29 @@ def solve_pressure(
     max_iterations: int,
     coefficient: Float[Array, "n k"] | None = None,
     preconditioner: Callable[[PressureSystem], Apply] | None = None,
+    boundary: Float[Array, " n"] | None = None,
 ) -> tuple[Float[Array, " n"], SolveInfo]:
     """Solve A p = source on the system rows (source is ignored elsewhere).
 
     `preconditioner` builds M^-1 from the (gradient-stopped) system, e.g.
-    `functools.partial(Multigrid(), grid, disc, position)`; None is Jacobi."""
+    `functools.partial(Multigrid(), grid, disc, position)`; None is Jacobi.
+    `boundary`: the Dirichlet values of the surface particles (None: 0), which
+    they keep in the returned pressure; a system row's right-hand side gains
+    sum_j c_ij boundary_j over its surface neighbours."""
     system = assemble_pressure_system(pairs, kind, active, surface, coefficient)
+    if boundary is not None:
+        carries = jnp.logical_and(active, is_kind(kind, PRESSURE_KINDS))
+        fixed = jnp.where(carries & ~system.in_system, boundary, 0.0)
+        c = pairs.weight if coefficient is None else coefficient
+        c = jnp.where(pairs.valid, c, 0.0)
+        source = source + jnp.sum(c * take_rows(fixed, pairs.index), axis=1)
     b = jnp.where(system.in_system, source, 0.0)
     x0 = jnp.where(system.in_system, guess, 0.0)
     stopped = jax.lax.stop_gradient(system)
     apply = (
         stopped.inverse_diagonal if preconditioner is None else preconditioner(stopped)
     )
-    return solve_spd(system.matvec, b, x0, apply, rtol, atol, max_iterations)
+    pressure, info = solve_spd(system.matvec, b, x0, apply, rtol, atol, max_iterations)
+    if boundary is not None:
+        pressure = jnp.where(system.in_system, pressure, fixed)
+    return pressure, info

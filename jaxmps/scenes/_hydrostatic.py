@@ -51,8 +51,12 @@ def hydrostatic(**overrides) -> Case:
 
 def hydrostatic_pressure(case: Case, probe: str = "pressure_bottom") -> float:
     """The analytic value of a `FluidPressureNear` probe of a `hydrostatic` case [Pa]:
-    rho |g| (H - l0/2 - y), with y the mean initial height of the probe's particles
-    and H - l0/2 the surface particles' centres, where the scheme imposes P = 0."""
+    rho |g| (H - y), the weight of the water above the mean initial height y of the
+    probe's particles (H the water's depth). The semi-implicit schemes' pressure
+    meets it (their surface particles carry the head of the water above them,
+    `SemiImplicit.surface_head`); a solver that holds P = 0 at the surface
+    particles' centres (the explicit one, or `surface_head=0`) reads up to about
+    l0/2 of head below it."""
     import numpy as np
 
     from .._types import Kind
@@ -68,4 +72,4 @@ def hydrostatic_pressure(case: Case, probe: str = "pressure_bottom") -> float:
     height = position[fluid & (d2 < near.radius**2), -1].mean()
     rho = float(case.params.density)
     g = float(np.linalg.norm(np.asarray(case.params.gravity)))
-    return rho * g * (case.config["depth"] - 0.5 * case.scene.spacing - height)
+    return rho * g * (case.config["depth"] - height)
