@@ -19,6 +19,7 @@ from ._hydrostatic import hydrostatic as hydrostatic
 from ._hydrostatic import hydrostatic_pressure as hydrostatic_pressure
 from ._probes import AbstractProbe as AbstractProbe
 from ._probes import BodyValue as BodyValue
+from ._probes import DisplacedDepth as DisplacedDepth
 from ._probes import FluidPressureNear as FluidPressureNear
 from ._probes import FrontPosition as FrontPosition
 from ._probes import ModeAmplitude as ModeAmplitude

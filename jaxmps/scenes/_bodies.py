@@ -22,7 +22,14 @@ from ._common import (
     velocity_scale,
     whole,
 )
-from ._probes import BodyValue, FrontPosition, PressureLevel, WallForce, WaterLevel
+from ._probes import (
+    BodyValue,
+    DisplacedDepth,
+    FrontPosition,
+    PressureLevel,
+    WallForce,
+    WaterLevel,
+)
 
 
 def _rotate(points: np.ndarray, centre: np.ndarray, degrees: float) -> np.ndarray:
@@ -98,6 +105,7 @@ FLOATING_BOX = {
     "box_height": 0.1,
     "density_ratio": 0.5,
     "heel": 0.0,
+    "bilge_radius": 0.0,
     "initial_draft": None,
     "body_pressure": "fluid",
     "tank_length": 0.8,
@@ -109,21 +117,42 @@ FLOATING_BOX = {
 }
 
 
+def _round_bilges(box, x0: float, width: float, bottom: float, radius: float):
+    """The particles of a box (lower face at `bottom`, x from `x0` to x0 + width)
+    inside arcs of `radius` at its two lower edges."""
+    if radius <= 0:
+        return box
+    x, z = box[:, 0], box[:, -1]
+    keep = np.ones(len(box), bool)
+    for cx in (x0 + radius, x0 + width - radius):
+        dx = x - cx
+        dz = z - (bottom + radius)
+        corner = (np.abs(dx) > 0) & (np.sign(dx) == np.sign(cx - x0 - 0.5 * width))
+        outside = (dz < 0) & corner & (dx**2 + dz**2 > radius**2)
+        keep &= ~outside
+    return box[keep]
+
+
 def floating_box(**overrides) -> Case:
     """A box `box_width` x `box_height` of density `density_ratio` x the water's,
     released at rest at `initial_draft` below the still-water surface (default: the
     Archimedes draft `density_ratio` x `box_height`; 0 drops it from the surface),
     heeled by `heel` degrees, in the middle of a tank `tank_length` long filled to
     `depth`. Fluid particles closer than l0/2 to the box are removed.
+    `bilge_radius` rounds the box's two lower edges (a ship section: the
+    particles outside the arcs are left out, and the box's mass with them; the
+    default draft then leaves out the area of the corners too).
     `body_pressure` is how the pressure acts on the box (`RigidBodies.pressure`):
     "fluid" (default; at Archimedes' draft) or "pairs".
 
     Probes: `box_x`, `box_y` (centre), `box_angle` [rad], `box_force_y` (fluid force,
     gravity excluded), `level_left`, `level_right` (water level 3 l0 from each wall),
     `surface_left`, `surface_right` (the level where the hydrostatic pressure of a
-    strip 3-8 l0 from each wall extrapolates to zero, `PressureLevel`).
-    Archimedes: the draft (that surface minus the box's bottom face) is
-    `density_ratio` x `box_height`.
+    strip 3-8 l0 from each wall extrapolates to zero, `PressureLevel`),
+    `displaced` (the depth of water the box displaces, counted by mass,
+    `DisplacedDepth`). Archimedes: `displaced` is `density_ratio` x `box_height`,
+    and so is the draft seen by the pressure (the pressure's surface minus the
+    box's bottom face).
     """
     c = resolve("floating_box", FLOATING_BOX, overrides)
     l0, dim = c["spacing"], int(c["dim"])
@@ -140,8 +169,17 @@ def floating_box(**overrides) -> Case:
     across = [whole(c["tank_width"], l0)] if dim == 3 else []
     height = depth + 2 * bh + 4 * l0
     x0 = whole(0.5 * (length - bw), l0)
+    radius = float(c["bilge_radius"])
+    if not 2 * radius <= min(bw, bh) + 1e-12:
+        raise ValueError(
+            "bilge_radius must be at most half of box_width and box_height."
+        )
     draft = c["initial_draft"]
-    draft = c["density_ratio"] * bh if draft is None else float(draft)
+    # Archimedes: the section's area under the waterline is the density ratio
+    # times its whole area (the corners cut by the bilges are not in either).
+    corners = (2.0 - 0.5 * math.pi) * radius**2
+    ratio = c["density_ratio"]
+    draft = ratio * bh + (1 - ratio) * corners / bw if draft is None else float(draft)
     if not 0 <= draft < depth:
         raise ValueError("initial_draft must lie in [0, depth).")
     # On the lattice: an off-lattice box leaves a void or an overlap under its face.
@@ -150,6 +188,7 @@ def floating_box(**overrides) -> Case:
     box = geometry.block(
         [x0] + [0.0] * (dim - 2) + [depth], [x0 + bw] + across + [depth + bh], l0
     )
+    box = _round_bilges(box, x0, bw, depth, float(c["bilge_radius"]))
     box[:, -1] -= draft
     if c["heel"]:
         box = _rotate(box, box.mean(axis=0), float(c["heel"]))
@@ -172,6 +211,10 @@ def floating_box(**overrides) -> Case:
         _orientation(dim, float(c["heel"])),
     )
     rho_g = c["density"] * c["gravity"]
+    # Far columns: whole columns of the initial lattice, a quarter of the way from
+    # each end wall to the box, half as wide as that gap.
+    far_start = max(2, round(0.25 * x0 / l0)) * l0
+    far_width = max(2, round(0.5 * x0 / l0)) * l0
     probes = (
         BodyValue("box_x", 0, "centre", 0),
         BodyValue("box_y", 0, "centre", dim - 1),
@@ -181,6 +224,15 @@ def floating_box(**overrides) -> Case:
         WaterLevel("level_right", length - 3.5 * l0, 0.0, l0),
         PressureLevel("surface_left", 5.5 * l0, 5 * l0, 0.0, rho_g, 2 * l0),
         PressureLevel("surface_right", length - 5.5 * l0, 5 * l0, 0.0, rho_g, 2 * l0),
+        DisplacedDepth(
+            "displaced",
+            0,
+            bw,
+            (far_start + 0.5 * far_width, length - far_start - 0.5 * far_width),
+            far_width,
+            l0**dim,
+            across[0] if across else 1.0,
+        ),
     )
     config = {
         **c,

@@ -214,6 +214,7 @@ RULES = {
     "gap": _OFFSET,
     "weir_height": _OFFSET,
     "initial_draft": _OFFSET,
+    "bilge_radius": _OFFSET,
     "amplitude": _OFFSET,
     "stroke": _OFFSET,
     # angles [degrees] and slopes

@@ -179,6 +179,39 @@ class PressureLevel(AbstractProbe):
         return jnp.where(count > 0, mean - self.floor, 0.0)
 
 
+class DisplacedDepth(AbstractProbe):
+    """The depth of water a floating body displaces [m], counted by mass: the
+    water per unit plan area in the columns far from the body (|x - x_far| <
+    `far_width`/2 for each `far` centre) minus that in the columns under the
+    body (|x - x_body| < `width`/2), in particle volumes l0^d. Water at rest
+    presses on the floor with the weight of each column, the body's included, so
+    a body of mass m and plan area A floating in equilibrium displaces
+    m / (rho A): `density_ratio` x `box_height` for a box (Archimedes by mass,
+    independent of where its free surface or its faces are taken to lie).
+    Columns span the tank across (3-D: `across` [m]; 2-D: 1)."""
+
+    name: str
+    body: int
+    width: float
+    far: tuple[float, ...]
+    far_width: float
+    volume: float
+    across: float = 1.0
+
+    def __call__(self, scene: Scene, state: State):
+        del scene
+        fluid = jnp.logical_and(state.active, state.kind == int(Kind.FLUID))
+        x = state.position[:, 0]
+        centre = state.rigid.centre[self.body, 0]
+        under = fluid & (jnp.abs(x - centre) < 0.5 * self.width)
+        far = jnp.zeros_like(fluid)
+        for x_far in self.far:
+            far = far | (fluid & (jnp.abs(x - x_far) < 0.5 * self.far_width))
+        per_area = self.volume / self.across
+        far_depth = jnp.sum(far) * per_area / (len(self.far) * self.far_width)
+        return far_depth - jnp.sum(under) * per_area / self.width
+
+
 def _tank_frame(
     state: State, anchor: int | None, anchor_x: float
 ) -> Float[Array, " n"]:
