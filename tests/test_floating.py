@@ -156,3 +156,31 @@ def _run_probes(case, t_end, saves=20):
     )
     assert out.result == jaxmps.Result.successful
     return {k: np.asarray(v) for k, v in out.saved.items()}
+
+
+def test_bilge_radius_rounds_the_lower_edges():
+    """A ship section: `bilge_radius` leaves out the particles outside arcs at the
+    two lower edges, so the section's area is the box's less (2 - pi/2) r^2 (to
+    within a particle per corner), its upper edges stay square, and the default
+    draft accounts for the missing corners. A radius beyond half the box is
+    refused by name."""
+    l0, width, height, radius = 0.01, 0.4, 0.26, 0.05
+    case = jaxmps.scenes.floating_box(
+        spacing=l0,
+        box_width=width,
+        box_height=height,
+        bilge_radius=radius,
+        density_ratio=0.8,
+        depth=0.5,
+        tank_length=1.0,
+    )
+    body = np.asarray(case.state.rigid.body) >= 0
+    area = body.sum() * l0**2
+    assert area == pytest.approx(
+        width * height - (2 - np.pi / 2) * radius**2, abs=2 * l0**2
+    )
+    x = np.asarray(case.state.position)[body]
+    top = x[:, 1] > x[:, 1].max() - 0.5 * l0
+    assert top.sum() == round(width / l0)
+    with pytest.raises(ValueError, match="bilge_radius"):
+        jaxmps.scenes.floating_box(spacing=0.02, bilge_radius=0.06)
