@@ -1,16 +1,22 @@
-"""Heave free decay of a floating box against linear potential-flow theory.
+"""Heave free decay of a floating section against linear potential-flow theory and,
+for a ship section, a measured decay test.
 
-`scenes.floating_box` (B = 0.2 m, H = 0.1 m, density ratio 0.5, so B/T = 4;
-`body_pressure="fluid"`) in a tank `--tank` m long and `--depth` m deep (long, so
-that the radiated waves return from the end walls only after the decay), released
-1 cm below its Archimedes draft. The centre's height is fitted over the first
-`--fit` seconds with y = c + exp(-zeta w t) (a cos(w_d t) + b sin(w_d t)),
-w_d = w sqrt(1 - zeta^2) (grid search over w and zeta, linear least squares for
-a, b, c). Theory (`_heave_theory.py`): w_n of w^2 (m + a33(w)) = rho g B and the
-radiation damping ratio b33 / (2 (m + a33) w_n) at the same depth.
+`--section box`: `scenes.floating_box` (B = 0.2 m, H = 0.1 m, density ratio 0.5, so
+B/T = 4). `--section ship`: the ship section of Sundsdal et al. (2025; B = 0.40 m,
+D = 0.256 m, bilge radius 0.0512 m, 46.8 kg over 0.586 m, water 1.0 m deep;
+data/sundsdal2025_section.csv), a box with rounded bilges (`bilge_radius`) of
+uniform density, whose measured heave decay period is 1.17 s. Either floats in a
+tank `--tank` m long and `--depth` m deep (long, so that the radiated waves return
+from the end walls only after the fit window) and is released `--offset` m below its
+Archimedes draft. The centre's height is fitted over the first `--fit` seconds with
+y = c + exp(-zeta w t) (a cos(w_d t) + b sin(w_d t)), w_d = w sqrt(1 - zeta^2)
+(grid search over w and zeta, linear least squares for a, b, c). Theory
+(`_heave_theory.py`, the rectangle of the same beam and draft): w_n of
+w^2 (m + a33(w)) = rho g B and the radiation damping ratio b33 / (2 (m + a33) w_n)
+at the same depth.
 
-Run: python validation/heave_decay.py [--spacings 0.02 0.01]
-(writes results/heave_decay_cpu.{json,md})
+Run: python validation/heave_decay.py [--section box|ship] [--spacings 0.02 0.01]
+(writes results/heave_decay_cpu.{json,md}, or heave_decay_ship_cpu.*)
 """
 
 import argparse
@@ -44,15 +50,48 @@ def fit_decay(t, y):
     return w, zeta, np.sqrt(r / len(t)) / amplitude
 
 
-def measure(spacing, tank, depth, offset, t_end, fit):
-    case = jaxmps.scenes.floating_box(
-        spacing=spacing,
-        tank_length=tank,
-        depth=depth,
-        initial_draft=0.05 + offset,
-        body_pressure="fluid",
-        t_end=t_end,
+# The sections: the box of the theory comparison, and the ship section of
+# Sundsdal et al. (data/sundsdal2025_section.csv), whose uniform density gives the
+# measured displacement (46.8 kg over 0.586 m) whatever the particles' count.
+SECTIONS = {
+    "box": dict(box_width=0.2, box_height=0.1, bilge_radius=0.0, mass=10.0),
+    "ship": dict(box_width=0.4, box_height=0.256, bilge_radius=0.0512, mass=None),
+}
+
+
+def _measured():
+    """The quantities of data/sundsdal2025_section.csv by name."""
+    lines = (HERE / "data" / "sundsdal2025_section.csv").read_text().splitlines()
+    rows = [line.split(",") for line in lines if line and not line.startswith("#")]
+    return {name: float(value) for name, value, _ in rows[1:]}
+
+
+def _section_case(section, spacing, tank, depth, offset, t_end):
+    """The floating section released `offset` below its Archimedes draft, and
+    its mass per unit length [kg/m]."""
+    geometry = dict(SECTIONS[section])
+    mass = geometry.pop("mass")
+    if mass is None:
+        data = _measured()
+        mass = data["displacement"] / data["length_across"]
+    area = geometry["box_width"] * geometry["box_height"]
+    common = dict(spacing=spacing, tank_length=tank, depth=depth, t_end=t_end)
+    trial = jaxmps.scenes.floating_box(
+        density_ratio=mass / (1000.0 * area), **geometry, **common
     )
+    particles = int(np.sum(np.asarray(trial.state.rigid.body) >= 0))
+    ratio = mass / (1000.0 * particles * spacing**2)
+    r = geometry["bilge_radius"]
+    corners = (2.0 - 0.5 * np.pi) * r**2
+    draft = (mass / 1000.0 + corners) / geometry["box_width"]
+    case = jaxmps.scenes.floating_box(
+        density_ratio=ratio, initial_draft=draft + offset, **geometry, **common
+    )
+    return case, mass, draft
+
+
+def measure(section, spacing, tank, depth, offset, t_end, fit):
+    case, mass, draft = _section_case(section, spacing, tank, depth, offset, t_end)
     dt = float(case.params.dt)
     saves = round(t_end / 0.01)
     every = max(1, round(t_end / dt) // saves)
@@ -71,8 +110,15 @@ def measure(spacing, tank, depth, offset, t_end, fit):
     window = t <= fit
     w, zeta, residual = fit_decay(t[window], y[window])
     c = case.config
-    w_th, zeta_th, added = free_heave(c["box_width"], 0.05, c["depth"])
+    # Linear theory for the rectangle of the same beam and draft (the ship
+    # section's bilges are left out of it).
+    w_th, zeta_th, added = free_heave(c["box_width"], draft, c["depth"])
+    measured = _measured()["heave_period"] if section == "ship" else None
     return dict(
+        section=section,
+        mass=mass,
+        draft=draft,
+        period_measured=measured,
         spacing=spacing,
         tank=tank,
         depth=c["depth"],
@@ -90,8 +136,48 @@ def measure(spacing, tank, depth, offset, t_end, fit):
     )
 
 
+def markdown(rows, info, args):
+    lines = [
+        f"# Heave free decay of a floating section ({args.section}) against"
+        " potential-flow theory"
+        + (" and the measured period" if args.section == "ship" else ""),
+        "",
+        f"Machine: {info.get('cpu_model', '?')}; float64; `validation/heave_decay.py"
+        f" --section {args.section}` (tank {args.tank} m, depth {args.depth} m,"
+        f" released {args.offset} m below the Archimedes draft, fit over the first"
+        f" {args.fit} s). Theory: the rectangle of the same beam and draft"
+        " (`_heave_theory.py`)"
+        + (
+            "; measured: Sundsdal et al. 2025 (data/sundsdal2025_section.csv),"
+            " whose section has bilges of radius 0.0512 m."
+            if args.section == "ship"
+            else "."
+        ),
+        "",
+        "| l0 [m] | particles | period [s] | theory [s] | error | measured [s] |"
+        " error | zeta | zeta, radiation only | fit residual | wall [s] |",
+        "|---|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    for r in rows:
+        measured = r["period_measured"]
+        vs = (
+            ("", "")
+            if measured is None
+            else (f"{measured:.3f}", f"{r['period'] / measured - 1:+.1%}")
+        )
+        lines.append(
+            f"| {r['spacing']} | {r['particles']} | {r['period']:.4f} |"
+            f" {r['period_theory']:.4f} | {r['period'] / r['period_theory'] - 1:+.1%} |"
+            f" {vs[0]} | {vs[1]} |"
+            f" {r['zeta']:.3f} | {r['zeta_theory']:.3f} | {r['fit_residual']:.2f} |"
+            f" {r['wall_s']:.0f} |"
+        )
+    return "\n".join(lines) + "\n"
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--section", choices=sorted(SECTIONS), default="box")
     parser.add_argument("--spacings", nargs="+", type=float, default=[0.02, 0.01])
     parser.add_argument("--tank", type=float, default=3.0)
     parser.add_argument("--depth", type=float, default=0.4)
@@ -102,33 +188,18 @@ def main():
     jax.config.update("jax_enable_x64", True)
     rows = []
     for l0 in args.spacings:
-        row = measure(l0, args.tank, args.depth, args.offset, args.t_end, args.fit)
+        row = measure(
+            args.section, l0, args.tank, args.depth, args.offset, args.t_end, args.fit
+        )
         rows.append(row)
         print(json.dumps({k: v for k, v in row.items() if k != "series"}), flush=True)
     info = machine_info()
-    path = HERE / "results" / "heave_decay_cpu"
+    name = "heave_decay" if args.section == "box" else f"heave_decay_{args.section}"
+    path = HERE / "results" / f"{name}_cpu"
     path.with_suffix(".json").write_text(
         json.dumps({"machine": info, "args": vars(args), "rows": rows}, indent=1)
     )
-    lines = [
-        "# Heave free decay of a floating box against potential-flow theory",
-        "",
-        f"Machine: {info.get('cpu_model', '?')}; float64; `validation/heave_decay.py`"
-        f" (tank {args.tank} m, depth {args.depth} m, released {args.offset} m below",
-        f"the Archimedes draft, fit over the first {args.fit} s).",
-        "",
-        "| l0 [m] | particles | period [s] | theory [s] | error | zeta |"
-        " zeta, radiation only | fit residual | wall [s] |",
-        "|---|---|---|---|---|---|---|---|---|",
-    ]
-    for r in rows:
-        lines.append(
-            f"| {r['spacing']} | {r['particles']} | {r['period']:.4f} |"
-            f" {r['period_theory']:.4f} | {r['period'] / r['period_theory'] - 1:+.1%} |"
-            f" {r['zeta']:.3f} | {r['zeta_theory']:.3f} | {r['fit_residual']:.2f} |"
-            f" {r['wall_s']:.0f} |"
-        )
-    path.with_suffix(".md").write_text("\n".join(lines) + "\n")
+    path.with_suffix(".md").write_text(markdown(rows, info, args))
 
 
 if __name__ == "__main__":
