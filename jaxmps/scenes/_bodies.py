@@ -133,6 +133,56 @@ def _round_bilges(box, x0: float, width: float, bottom: float, radius: float):
     return box[keep]
 
 
+def _release_draft(c: dict, bw: float, bh: float, depth: float) -> float:
+    """The draft the box is released at [m], on the lattice: `initial_draft`, or
+    Archimedes' (the section's area under the waterline is the density ratio
+    times its whole area; the corners cut by the bilges are in neither)."""
+    l0, radius = c["spacing"], float(c["bilge_radius"])
+    if not 2 * radius <= min(bw, bh) + 1e-12:
+        raise ValueError(
+            "bilge_radius must be at most half of box_width and box_height."
+        )
+    draft = c["initial_draft"]
+    corners = (2.0 - 0.5 * math.pi) * radius**2
+    ratio = c["density_ratio"]
+    draft = ratio * bh + (1 - ratio) * corners / bw if draft is None else float(draft)
+    if not 0 <= draft < depth:
+        raise ValueError("initial_draft must lie in [0, depth).")
+    # On the lattice: an off-lattice box leaves a void or an overlap under its face.
+    return round(draft / l0) * l0
+
+
+def _floating_probes(
+    c: dict, length: float, across: list, x0: float, bw: float
+) -> tuple:
+    """The floating box's probes (see `floating_box`)."""
+    l0, dim = c["spacing"], int(c["dim"])
+    rho_g = c["density"] * c["gravity"]
+    # Far columns: whole columns of the initial lattice, a quarter of the way from
+    # each end wall to the box, half as wide as that gap.
+    far_start = max(2, round(0.25 * x0 / l0)) * l0
+    far_width = max(2, round(0.5 * x0 / l0)) * l0
+    return (
+        BodyValue("box_x", 0, "centre", 0),
+        BodyValue("box_y", 0, "centre", dim - 1),
+        BodyValue("box_angle", 0, "angle"),
+        BodyValue("box_force_y", 0, "force", dim - 1),
+        WaterLevel("level_left", 3.5 * l0, 0.0, l0),
+        WaterLevel("level_right", length - 3.5 * l0, 0.0, l0),
+        PressureLevel("surface_left", 5.5 * l0, 5 * l0, 0.0, rho_g, 2 * l0),
+        PressureLevel("surface_right", length - 5.5 * l0, 5 * l0, 0.0, rho_g, 2 * l0),
+        DisplacedDepth(
+            "displaced",
+            0,
+            bw,
+            (far_start + 0.5 * far_width, length - far_start - 0.5 * far_width),
+            far_width,
+            l0**dim,
+            across[0] if across else 1.0,
+        ),
+    )
+
+
 def floating_box(**overrides) -> Case:
     """A box `box_width` x `box_height` of density `density_ratio` x the water's,
     released at rest at `initial_draft` below the still-water surface (default: the
@@ -150,9 +200,10 @@ def floating_box(**overrides) -> Case:
     `surface_left`, `surface_right` (the level where the hydrostatic pressure of a
     strip 3-8 l0 from each wall extrapolates to zero, `PressureLevel`),
     `displaced` (the depth of water the box displaces, counted by mass,
-    `DisplacedDepth`). Archimedes: `displaced` is `density_ratio` x `box_height`,
-    and so is the draft seen by the pressure (the pressure's surface minus the
-    box's bottom face).
+    `DisplacedDepth`). Archimedes: `displaced` is the box's mass over rho
+    `box_width` (`density_ratio` x `box_height` without bilges), and so is the
+    draft seen by the pressure (the pressure's surface minus the box's bottom
+    face).
     """
     c = resolve("floating_box", FLOATING_BOX, overrides)
     l0, dim = c["spacing"], int(c["dim"])
@@ -169,21 +220,7 @@ def floating_box(**overrides) -> Case:
     across = [whole(c["tank_width"], l0)] if dim == 3 else []
     height = depth + 2 * bh + 4 * l0
     x0 = whole(0.5 * (length - bw), l0)
-    radius = float(c["bilge_radius"])
-    if not 2 * radius <= min(bw, bh) + 1e-12:
-        raise ValueError(
-            "bilge_radius must be at most half of box_width and box_height."
-        )
-    draft = c["initial_draft"]
-    # Archimedes: the section's area under the waterline is the density ratio
-    # times its whole area (the corners cut by the bilges are not in either).
-    corners = (2.0 - 0.5 * math.pi) * radius**2
-    ratio = c["density_ratio"]
-    draft = ratio * bh + (1 - ratio) * corners / bw if draft is None else float(draft)
-    if not 0 <= draft < depth:
-        raise ValueError("initial_draft must lie in [0, depth).")
-    # On the lattice: an off-lattice box leaves a void or an overlap under its face.
-    draft = round(draft / l0) * l0
+    draft = _release_draft(c, bw, bh, depth)
     fluid = geometry.block([0.0] * dim, [length] + across + [depth], l0)
     box = geometry.block(
         [x0] + [0.0] * (dim - 2) + [depth], [x0 + bw] + across + [depth + bh], l0
@@ -210,30 +247,7 @@ def floating_box(**overrides) -> Case:
         velocity_scale(bh, c["gravity"]),
         _orientation(dim, float(c["heel"])),
     )
-    rho_g = c["density"] * c["gravity"]
-    # Far columns: whole columns of the initial lattice, a quarter of the way from
-    # each end wall to the box, half as wide as that gap.
-    far_start = max(2, round(0.25 * x0 / l0)) * l0
-    far_width = max(2, round(0.5 * x0 / l0)) * l0
-    probes = (
-        BodyValue("box_x", 0, "centre", 0),
-        BodyValue("box_y", 0, "centre", dim - 1),
-        BodyValue("box_angle", 0, "angle"),
-        BodyValue("box_force_y", 0, "force", dim - 1),
-        WaterLevel("level_left", 3.5 * l0, 0.0, l0),
-        WaterLevel("level_right", length - 3.5 * l0, 0.0, l0),
-        PressureLevel("surface_left", 5.5 * l0, 5 * l0, 0.0, rho_g, 2 * l0),
-        PressureLevel("surface_right", length - 5.5 * l0, 5 * l0, 0.0, rho_g, 2 * l0),
-        DisplacedDepth(
-            "displaced",
-            0,
-            bw,
-            (far_start + 0.5 * far_width, length - far_start - 0.5 * far_width),
-            far_width,
-            l0**dim,
-            across[0] if across else 1.0,
-        ),
-    )
+    probes = _floating_probes(c, length, across, x0, bw)
     config = {
         **c,
         "box_width": bw,
