@@ -264,6 +264,8 @@ def add_rigid_bodies(
     mu_static=0.5,
     mu_kinetic=None,
     orientation=None,
+    centre_of_mass=None,
+    gyration=None,
     friction: bodies.Coulomb | None = bodies.RigidBodies.friction,
     contact_distance: float = bodies.RigidBodies.contact_distance,
     pressure: str = bodies.RigidBodies.pressure,
@@ -281,6 +283,12 @@ def add_rigid_bodies(
         orientation: the orientation the particles are given in (angle in degrees
             per body in 2-D, rotation vector in degrees per body in 3-D); the body
             frame is the unrotated one, so reported orientations are absolute.
+        centre_of_mass: where the centre of mass lies from the centroid of the
+            body's particles, in the body frame [m]: d values for all bodies or per
+            body; None for a uniform body (`Params.rigid.centre_of_mass`).
+        gyration: radii of gyration about the centre of mass [m] (about z in 2-D;
+            about the body-frame axes in 3-D), for all bodies or per body; None for
+            the inertia of the body's particles (`Params.rigid.gyration`).
         friction: a `jaxmps.bodies.Coulomb` law, or None for frictionless contact
             (default: that of `jaxmps.bodies.RigidBodies`).
         contact_distance: see `jaxmps.bodies.RigidBodies` (and its default).
@@ -301,6 +309,22 @@ def add_rigid_bodies(
     active = np.asarray(state.active)
     ids, count = bodies.body_indices(body, scene.capacity, active)
     rigid_params = _rigid_params(params, count, density, mu_static, mu_kinetic)
+    spin = bodies.rotation.spin_size(scene.dim)
+    mass_rows = {
+        "centre_of_mass": bodies.per_body_rows(
+            centre_of_mass, "centre_of_mass", count, scene.dim
+        ),
+        "gyration": bodies.per_body_rows(gyration, "gyration", count, spin),
+    }
+    if mass_rows["gyration"] is not None and not np.all(mass_rows["gyration"] > 0):
+        raise ValueError(f"gyration must be positive, got {gyration}.")
+    rigid_params = dataclasses.replace(
+        rigid_params,
+        **{
+            k: None if v is None else jnp.asarray(v, params.density.dtype)
+            for k, v in mass_rows.items()
+        },
+    )
     rigid, kind, velocity = bodies.rigid_state(
         np.array(state.position, np.float64),
         np.array(state.velocity, np.float64),

@@ -20,6 +20,7 @@ VALUE_RULES = {
     "rigid.density": "positive",
     "rigid.mu_static": ">= 0",
     "rigid.mu_kinetic": ">= 0",
+    "rigid.gyration": "positive",
 }
 
 
@@ -91,33 +92,42 @@ class StrokeParams(eqx.Module):
     stroke: Float[Array, " m"] = eqx.field(converter=jnp.asarray)
 
 
+def _optional_array(value):
+    return None if value is None else jnp.asarray(value)
+
+
 class RigidParams(eqx.Module):
     """Per-body parameters of the rigid-body component (differentiable).
+
+    A body's mass is its density times its particles' volume. Its centre of mass
+    and inertia are those of its particles (a uniform body) unless given:
 
     Attributes:
         density: density of each body [kg/m^3], shape (b,).
         mu_static: static friction coefficient against walls, shape (b,).
         mu_kinetic: kinetic (sliding) friction coefficient, shape (b,).
+        centre_of_mass: where each body's centre of mass lies from the centroid of
+            its particles, in the body frame (the frame the particles were given
+            in) [m], shape (b, d); None for the centroid.
+        gyration: each body's radii of gyration about its centre of mass [m], about
+            z in 2-D (shape (b, 1)) and about the body-frame axes x, y, z in 3-D
+            (shape (b, 3), principal axes); None for the inertia of the body's
+            particles about the centre of mass.
     """
 
     density: Float[Array, " b"] = eqx.field(converter=jnp.asarray)
     mu_static: Float[Array, " b"] = eqx.field(converter=jnp.asarray)
     mu_kinetic: Float[Array, " b"] = eqx.field(converter=jnp.asarray)
+    centre_of_mass: Float[Array, "b d"] | None = eqx.field(
+        default=None, converter=_optional_array
+    )
+    gyration: Float[Array, "b a"] | None = eqx.field(
+        default=None, converter=_optional_array
+    )
 
     def __check_init__(self):
-        for name in ("density", "mu_static", "mu_kinetic"):
-            value = getattr(self, name)
-            if not is_concrete(value):
-                continue
-            bad = ~(value > 0) if name == "density" else ~(value >= 0)
-            bad |= ~jnp.isfinite(value)
-            if bool(jnp.any(bad)):
-                sign = "positive" if name == "density" else ">= 0"
-                sign += " and finite"
-                raise ValueError(
-                    f"Params.rigid.{name} must be {sign} for every body, got "
-                    f"{jnp.asarray(value).tolist()}."
-                )
+        # Only concrete values can be checked; traced values pass through.
+        _check_fields(self, "rigid.", "", nested=False)
 
 
 class Params(eqx.Module):

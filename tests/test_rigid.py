@@ -40,7 +40,7 @@ def test_quaternion_rotation_sanity(rng):
     np.testing.assert_allclose(g, [0.5, 0, 0])
 
 
-def _free_body(dim, spin, viscosity=1e-3):
+def _free_body(dim, spin, viscosity=1e-3, **mass_properties):
     l0 = 0.1
     upper = [0.5, 0.3] if dim == 2 else [0.5, 0.3, 0.2]
     box = geometry.block([0.0] * dim, upper, l0)
@@ -59,7 +59,20 @@ def _free_body(dim, spin, viscosity=1e-3):
         velocity += np.cross(np.asarray(spin), box - centre)
     state = jaxmps.make_state(scene, box, np.zeros(len(box), int), velocity=velocity)
     return jaxmps.add_rigid_bodies(
-        scene, params, state, np.zeros(len(box), int), density=500.0
+        scene, params, state, np.zeros(len(box), int), density=500.0, **mass_properties
+    )
+
+
+def _at_rest(state):
+    """`state` with its particles and bodies at rest."""
+    return eqx.tree_at(
+        lambda s: (s.velocity, s.rigid.velocity, s.rigid.angular_velocity),
+        state,
+        (
+            state.velocity * 0,
+            state.rigid.velocity * 0,
+            state.rigid.angular_velocity * 0,
+        ),
     )
 
 
@@ -131,6 +144,107 @@ def test_projection_keeps_momentum_of_tentative_velocities(dim, rng):
     )
 
 
+@pytest.mark.parametrize("dim", [2, 3])
+def test_body_with_given_centre_of_mass_and_gyration_moves_about_it(dim):
+    """A body whose centre of mass G is off its particles' centroid, with given
+    radii of gyration, in free flight (no gravity): G moves in a straight line at
+    constant speed, the centroid turns about G, the angular momentum about G is
+    I_G omega with I_G = M k^2, kept (in 2-D omega itself is constant, so the turn
+    is omega t). Under gravity alone it falls without turning (gravity acts at G)."""
+    offset = [0.08, -0.05] if dim == 2 else [0.08, -0.05, 0.03]
+    radii = [0.3] if dim == 2 else [0.2, 0.25, 0.3]
+    spin = 2.0 if dim == 2 else (1.0, 0.5, 2.0)
+    scene, params, state = _free_body(dim, spin, centre_of_mass=offset, gyration=radii)
+    mass = 500.0 * 0.1**dim * state.rigid.reference.shape[0]
+    steps, dt = 600, float(params.dt)
+    out = jaxmps.simulate(scene, params, state, n_steps=steps, save_every=steps)
+    assert out.result == jaxmps.Result.successful
+
+    def centre_of_mass(rs):
+        r = np.asarray(rot.matrix(rs.orientation, dim))[0]
+        return np.asarray(rs.centre[0]) + r @ np.asarray(offset)
+
+    def momentum(rs):
+        r = np.asarray(rot.matrix(rs.orientation, dim))[0]
+        if dim == 2:
+            return mass * radii[0] ** 2 * np.asarray(rs.angular_velocity[0])
+        inertia = r @ np.diag(mass * np.square(radii)) @ r.T
+        return inertia @ np.asarray(rs.angular_velocity[0])
+
+    g0, g1 = centre_of_mass(state.rigid), centre_of_mass(out.state.rigid)
+    r0 = np.asarray(rot.matrix(state.rigid.orientation, dim))[0]
+    w0 = np.asarray(state.rigid.angular_velocity[0])
+    velocity_g = np.asarray(state.rigid.velocity[0]) + np.asarray(
+        rot.spin_cross(jnp.asarray(w0), jnp.asarray(r0 @ np.asarray(offset)))
+    )
+    np.testing.assert_allclose(g1, g0 + steps * dt * velocity_g, atol=1e-11)
+    np.testing.assert_allclose(
+        momentum(out.state.rigid), momentum(state.rigid), rtol=1e-11, atol=1e-13
+    )
+    # The centroid is off G by the rotated offset, and did move round it.
+    centroid_arm = np.asarray(out.state.rigid.centre[0]) - g1
+    np.testing.assert_allclose(
+        np.linalg.norm(centroid_arm), np.linalg.norm(offset), rtol=1e-12
+    )
+    if dim == 2:
+        angle = float(out.state.rigid.orientation[0, 0])
+        np.testing.assert_allclose(angle, spin * steps * dt, rtol=1e-12)
+    # Particles move rigidly with G's velocity plus omega x (r - G).
+    w1 = np.asarray(out.state.rigid.angular_velocity[0])
+    expected = velocity_g + np.asarray(
+        rot.spin_cross(
+            jnp.asarray(w1)[None], jnp.asarray(np.asarray(out.state.position) - g1)
+        )
+    )
+    np.testing.assert_allclose(out.state.velocity, expected, atol=1e-11)
+
+    falling = _at_rest(state)
+    down = dataclasses.replace(params, gravity=jnp.asarray([0.0] * (dim - 1) + [-9.81]))
+    fell = jaxmps.simulate(scene, down, falling, n_steps=100, save_every=100).state
+    # (gravity acting at the centroid would spin it up to about 0.9 rad/s)
+    np.testing.assert_allclose(fell.rigid.angular_velocity, 0.0, atol=1e-12)
+    t = 100 * dt
+    np.testing.assert_allclose(
+        centre_of_mass(fell.rigid)[-1] - g0[-1], -9.81 * t * (t + dt) / 2, rtol=1e-12
+    )
+
+
+def test_projection_with_given_mass_properties():
+    """The projection of tentative velocities u^ for a body with a given centre of
+    mass G and gyration k: the momentum M V_G = m sum u^ and the angular momentum
+    about G, m sum (r_i - G) x u^_i = M k^2 omega (a body at rest, no gravity)."""
+    offset, radius = np.array([0.1, 0.04]), 0.25
+    scene, params, state = _free_body(2, 0.0, centre_of_mass=offset, gyration=radius)
+    state = _at_rest(state)
+    rng = np.random.default_rng(4)
+    u_hat = jnp.asarray(rng.normal(size=state.velocity.shape))
+    tentative = eqx.tree_at(lambda s: s.velocity, state, u_hat)
+    zero = jnp.zeros_like(state.velocity)
+    nbrs = jaxmps.neighbours.build(
+        scene.grid, state.position, state.active, scene.max_neighbours, scene.r_e
+    )
+    pairs = jaxmps.operators.make_pairs(
+        nbrs.index, state.position, scene.weight, scene.r_e
+    )
+    load = jaxmps.FluidLoad(pairs=pairs, gradient=zero, wall_gradient=zero)
+    moved = scene.rigid.advance(scene.discretisation, params, tentative, load)
+    m, n = 500.0 * 0.1**2, state.position.shape[0]
+    g = np.asarray(state.rigid.centre[0]) + offset
+    arm = np.asarray(state.position) - g
+    l_hat = m * np.asarray(rot.cross(jnp.asarray(arm), u_hat)).sum(axis=0)
+    omega = float(moved.rigid.angular_velocity[0, 0])
+    np.testing.assert_allclose(omega, l_hat[0] / (m * n * radius**2), rtol=1e-12)
+    angle = float(moved.rigid.orientation[0, 0])
+    turn = np.array([[np.cos(angle), -np.sin(angle)], [np.sin(angle), np.cos(angle)]])
+    g_new = np.asarray(moved.rigid.centre[0]) + turn @ offset
+    mean_u = np.asarray(u_hat).mean(axis=0)
+    np.testing.assert_allclose(g_new - g, float(params.dt) * mean_u, atol=1e-14)
+    p_new = m * np.asarray(moved.velocity).sum(axis=0)
+    # Particles' momentum: M times the centroid's velocity, V_G + omega x (c - G).
+    v_centroid = mean_u + omega * np.array([(turn @ offset)[1], -(turn @ offset)[0]])
+    np.testing.assert_allclose(p_new, m * n * v_centroid, rtol=1e-12, atol=1e-12)
+
+
 def test_rigid_params_vmap_matches_loop():
     """Body density is a Params field: vmapping it equals running each value."""
     scene, params, state = _free_body(2, 1.0)
@@ -177,6 +291,12 @@ def test_add_rigid_bodies_rejects_bad_input():
         add(scene, params, state2, ids, density=500.0)
     with pytest.raises(ValueError, match="positive"):
         add(scene, params, state, ids, density=-1.0)
+    with pytest.raises(ValueError, match="gyration must be positive"):
+        add(scene, params, state, ids, density=500.0, gyration=0.0)
+    with pytest.raises(ValueError, match="centre_of_mass must give 2 value"):
+        add(scene, params, state, ids, density=500.0, centre_of_mass=[0.1, 0, 0])
+    with pytest.raises(ValueError, match="centre_of_mass must be finite"):
+        add(scene, params, state, ids, density=500.0, centre_of_mass=[np.nan, 0])
     # Scene, Params and State must agree.
     s, p, st = add(scene, params, state, ids, density=500.0)
     with pytest.raises(ValueError, match="all be set or all be None"):
@@ -185,6 +305,11 @@ def test_add_rigid_bodies_rejects_bad_input():
         ValueError, match=r"Params.rigid.density has shape \(2,\).*1 rigid bodies"
     ):
         bad = eqx.tree_at(lambda q: q.rigid.density, p, jnp.ones(2))
+        jaxmps.step(s, bad, st)
+    with pytest.raises(ValueError, match=r"Params.rigid.gyration has shape \(1, 3\)"):
+        bad = dataclasses.replace(
+            p, rigid=dataclasses.replace(p.rigid, gyration=jnp.ones((1, 3)))
+        )
         jaxmps.step(s, bad, st)
 
 

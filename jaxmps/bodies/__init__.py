@@ -15,4 +15,5 @@ from ._rigid import is_body as is_body
 from ._setup import body_indices as body_indices
 from ._setup import orientations as orientations
 from ._setup import per_body as per_body
+from ._setup import per_body_rows as per_body_rows
 from ._setup import rigid_state as rigid_state

@@ -107,6 +107,23 @@ class RigidBodies(AbstractBodyModel):
                     f"(expected ({b},)). For a batch of values use `jaxmps.sweep` "
                     "or `jax.vmap` over Params."
                 )
+        dim = state.position.shape[-1]
+        expected = {
+            "centre_of_mass": (b, dim),
+            "gyration": (b, rot.spin_size(dim)),
+        }
+        for name, shape in expected.items():
+            value = getattr(params.rigid, name)
+            if value is not None and value.shape != shape:
+                raise ValueError(
+                    f"Params.rigid.{name} has shape {value.shape}; expected {shape} "
+                    f"(one row per body of the Scene's {b}, "
+                    + (
+                        "d components)."
+                        if name == "centre_of_mass"
+                        else "one radius per body-frame axis: 1 in 2-D, 3 in 3-D)."
+                    )
+                )
 
     def owner(self, state: State) -> Int[Array, " n"]:
         """Each particle's body, -1 for none (rigid bodies are numbered first)."""
@@ -130,13 +147,20 @@ class RigidBodies(AbstractBodyModel):
         """Project the body particles (as advanced by the fluid stages, with
         tentative velocities u^) onto rigid motions, apply friction, and move them.
 
-        Velocity projection, per body with particle mass m = rho_b l0^d:
-            V = (1/N) sum u^_i,   L = m sum (r_i^k - r_g^k) x u^_i,
-        which equals projecting the tentative displacements dt u^_i (seed 000 eq.
-        2.5-4/5). Then r_g^{k+1} = r_g^k + dt V and the orientation turns by
-        dt I_k^-1 L (I_k the inertia at step k, eq. 2.5-9/10); the particles get
-        v_i = V + omega x (r_i - r_g) with omega = I_{k+1}^-1 L, so a free body
-        keeps L exactly.
+        The fluid stages change each body particle's velocity by dt (g + a_i), a_i
+        the fluid's acceleration of a particle of mass m = rho_b l0^d. The body of
+        mass M = N m, centre of mass G and inertia I_G takes their momentum and
+        their angular momentum about G, gravity acting at G:
+            M V_G' = M V_G + m sum (u^_i - u_i),
+            L' = I_G omega + m sum (r_i - r_G) x (u^_i - u_i - dt g),
+        u_i the particles' rigid velocities at step k. For a uniform body (G the
+        particles' centroid, I_G theirs) this is seed 000's projection of the
+        tentative displacements (eq. 2.5-4/5): V = (1/N) sum u^_i, L = m sum
+        (r_i - r_g) x u^_i. Then r_G^{k+1} = r_G^k + dt V_G' and the orientation
+        turns by dt I_k^-1 L' (I_k the inertia at step k, eq. 2.5-9/10); the
+        particles get v_i = V_G' + omega x (r_i - r_G) with omega = I_{k+1}^-1 L',
+        so a free body keeps L' exactly. The state keeps the centroid of the
+        particles and its velocity.
         """
         rs = state.rigid
         dim, count, dt = disc.dim, self.count, params.dt
@@ -151,42 +175,49 @@ class RigidBodies(AbstractBodyModel):
         number = body_sum(jnp.ones_like(state.pressure))
         particle_mass = params.rigid.density * disc.volume
         mass = particle_mass * number
-
         rotation_k = rot.matrix(rs.orientation, dim)
-        arm_k = jnp.einsum("nij,nj->ni", rotation_k[index], rs.reference)
-        velocity = body_sum(state.velocity) / number[:, None]
-        momentum_l = particle_mass[:, None] * body_sum(rot.cross(arm_k, state.velocity))
-        inertia_body = particle_mass[:, None, None] * body_sum(
-            rot.inertia_of(rs.reference)
-        )
+        offset_body = self._offset(params, rs.centre)
+        inertia_body = self._inertia(params, rs, particle_mass, mass, body_sum)
         inertia_k = _world(inertia_body, rotation_k, dim)
+
+        arm_k = jnp.einsum("nij,nj->ni", rotation_k[index], rs.reference)
+        offset_k = jnp.einsum("bij,bj->bi", rotation_k, offset_body)
+        rigid_k = rs.velocity[index] + rot.spin_cross(rs.angular_velocity[index], arm_k)
+        change = state.velocity - rigid_k
+        velocity_k = rs.velocity + rot.spin_cross(rs.angular_velocity, offset_k)
+        velocity = velocity_k + body_sum(change) / number[:, None]
+        lever = arm_k - offset_k[index]
+        momentum_k = jnp.einsum("bij,bj->bi", inertia_k, rs.angular_velocity)
+        momentum_l = momentum_k + particle_mass[:, None] * body_sum(
+            rot.cross(lever, change - dt * params.gravity[None, :])
+        )
 
         contact = self._contact(disc, state, load, body_sum, arm_k)
         velocity, momentum_l, friction, sliding = self._rub(
-            disc, params, contact, velocity, momentum_l, mass, number
+            disc, params, contact, velocity, momentum_l, mass, number, offset_k
         )
 
         omega_k = jnp.linalg.solve(inertia_k, momentum_l[..., None])[..., 0]
-        centre = rs.centre + dt * velocity
+        centre_of_mass = rs.centre + offset_k + dt * velocity
         orientation = rot.rotate(rs.orientation, dt * omega_k, dim)
         rotation = rot.matrix(orientation, dim)
         omega = jnp.linalg.solve(
             _world(inertia_body, rotation, dim), momentum_l[..., None]
         )[..., 0]
+        offset = jnp.einsum("bij,bj->bi", rotation, offset_body)
+        centre = centre_of_mass - offset
+        centre_velocity = velocity - rot.spin_cross(omega, offset)
 
         arm = jnp.einsum("nij,nj->ni", rotation[index], rs.reference)
         position = centre[index] + arm
-        particle_velocity = velocity[index] + rot.spin_cross(omega[index], arm)
-        old_momentum_l = jnp.einsum("bij,bj->bi", inertia_k, rs.angular_velocity)
-        force = mass[:, None] * (
-            (velocity - rs.velocity) / dt - params.gravity[None, :]
-        )
-        torque = (momentum_l - old_momentum_l) / dt
+        particle_velocity = centre_velocity[index] + rot.spin_cross(omega[index], arm)
+        force = mass[:, None] * ((velocity - velocity_k) / dt - params.gravity[None, :])
+        torque = (momentum_l - momentum_k) / dt
         rigid = dataclasses.replace(
             rs,
             centre=centre,
             orientation=orientation,
-            velocity=velocity,
+            velocity=centre_velocity,
             angular_velocity=omega,
             force=force,
             torque=torque,
@@ -203,6 +234,26 @@ class RigidBodies(AbstractBodyModel):
             rigid=rigid,
         )
 
+    def _offset(self, params: Params, centre: Float[Array, "b d"]):
+        """Each body's centre of mass from its particles' centroid, body frame."""
+        offset = params.rigid.centre_of_mass
+        return jnp.zeros_like(centre) if offset is None else offset.astype(centre.dtype)
+
+    def _inertia(self, params: Params, rs, particle_mass, mass, body_sum):
+        """Each body's inertia about its centre of mass in the body frame: from the
+        radii of gyration, or that of its particles."""
+        dim = rs.reference.shape[-1]
+        gyration = params.rigid.gyration
+        if gyration is None:
+            offset = self._offset(params, rs.centre)
+            index = jnp.where(rs.body >= 0, rs.body, 0)
+            own = rot.inertia_of(rs.reference - offset[index])
+            return particle_mass[:, None, None] * body_sum(own)
+        moments = mass[:, None] * gyration.astype(mass.dtype) ** 2
+        if dim == 2:
+            return moments[:, :, None]
+        return moments[:, :, None] * jnp.eye(3, dtype=mass.dtype)[None]
+
     def _rub(
         self,
         disc: Discretisation,
@@ -212,11 +263,13 @@ class RigidBodies(AbstractBodyModel):
         momentum_l: Float[Array, "b a"],
         mass: Float[Array, " b"],
         number: Float[Array, " b"],
+        offset: Float[Array, "b d"],
     ) -> tuple[
         Float[Array, "b d"], Float[Array, "b a"], Float[Array, "b d"], Bool[Array, " b"]
     ]:
-        """Friction against walls: (velocity, angular momentum) after the friction
-        impulse, the friction force, and whether each body slides."""
+        """Friction against walls: (velocity of the centre of mass, angular
+        momentum about it) after the friction impulse, acting at the contact's mean
+        arm, the friction force, and whether each body slides."""
         count = self.count
         if self.friction is None:
             return (
@@ -237,7 +290,7 @@ class RigidBodies(AbstractBodyModel):
             disc.dim,
         )
         if self.friction.torque:
-            momentum_l = momentum_l + rot.cross(contact.arm, impulse)
+            momentum_l = momentum_l + rot.cross(contact.arm - offset, impulse)
         return (
             velocity + impulse / mass[:, None],
             momentum_l,

@@ -54,6 +54,23 @@ def per_body(value, name: str, count: int) -> np.ndarray:
     return out
 
 
+def per_body_rows(value, name: str, count: int, size: int) -> np.ndarray | None:
+    """None, or one row of `size` values for all bodies or per body, as a finite
+    float array of shape (b, size)."""
+    if value is None:
+        return None
+    try:
+        out = np.broadcast_to(np.asarray(value, np.float64), (count, size)).copy()
+    except ValueError:
+        raise ValueError(
+            f"{name} must give {size} value(s) for all bodies or per body "
+            f"({count}), got shape {np.shape(value)}."
+        ) from None
+    if not np.all(np.isfinite(out)):
+        raise ValueError(f"{name} must be finite, got {out.tolist()}.")
+    return out
+
+
 def orientations(orientation, count: int, dim: int) -> np.ndarray:
     """Orientations (an angle per body in 2-D, a unit quaternion per body in 3-D)
     from degrees (an angle, or a rotation vector in 3-D); zero if None."""
