@@ -328,6 +328,10 @@ def test_body_scenes_build_and_list():
         jaxmps.scenes.build("floating_box", box_widht=0.1)
     with pytest.raises(ValueError, match="density_ratio"):
         jaxmps.scenes.floating_box(density_ratio=-1.0)
+    with pytest.raises(ValueError, match="centre_of_gravity must lie inside the box"):
+        jaxmps.scenes.floating_box(centre_of_gravity=0.3)
+    with pytest.raises(ValueError, match="gyration must be"):
+        jaxmps.scenes.floating_box(gyration=-0.1)
 
 
 def test_restart_with_bodies_is_bit_exact(tmp_path):

@@ -87,6 +87,8 @@ def _body_case(config, fluid, box, walls, wall_kind, domain, speed, orientation)
         mu_static=config.get("mu_static", 0.0),
         mu_kinetic=config.get("mu_kinetic"),
         orientation=orientation,
+        centre_of_mass=config.get("centre_of_mass"),
+        gyration=config.get("gyration_radii"),
         friction=friction,
         pressure=config.get("pressure", "pairs"),
     )
@@ -106,6 +108,8 @@ FLOATING_BOX = {
     "density_ratio": 0.5,
     "heel": 0.0,
     "bilge_radius": 0.0,
+    "centre_of_gravity": None,
+    "gyration": None,
     "initial_draft": None,
     "body_pressure": "fluid",
     "tank_length": 0.8,
@@ -131,6 +135,36 @@ def _round_bilges(box, x0: float, width: float, bottom: float, radius: float):
         outside = (dz < 0) & corner & (dx**2 + dz**2 > radius**2)
         keep &= ~outside
     return box[keep]
+
+
+def _mass_properties(c: dict, box: np.ndarray, keel: float) -> dict:
+    """The box's centre of mass from its particles' centroid and its radii of
+    gyration (`add_rigid_bodies`) from `centre_of_gravity` (height above the keel)
+    and `gyration` (about the heel axis; about the others the particles' own about
+    the centre of mass), in the unheeled frame; {} for a uniform box."""
+    dim = box.shape[1]
+    kg, radius = c["centre_of_gravity"], c["gyration"]
+    if kg is None and radius is None:
+        return {}
+    centroid = box.mean(axis=0)
+    offset = np.zeros(dim)
+    if kg is not None:
+        top = box[:, -1].max() + 0.5 * c["spacing"]
+        if not keel < keel + kg < top:
+            raise ValueError(
+                f"centre_of_gravity must lie inside the box, between its keel and "
+                f"its top ({top - keel:.4g} m above it), got {kg}."
+            )
+        offset[-1] = keel + kg - centroid[-1]
+    out = {"centre_of_mass": offset}
+    if radius is not None:
+        arm = box - centroid - offset
+        if dim == 2:
+            out["gyration_radii"] = [radius]
+        else:
+            own = [np.mean(np.sum(np.delete(arm, a, 1) ** 2, 1)) for a in range(3)]
+            out["gyration_radii"] = [own[0] ** 0.5, radius, own[2] ** 0.5]
+    return out
 
 
 def _release_draft(c: dict, bw: float, bh: float, depth: float) -> float:
@@ -192,6 +226,10 @@ def floating_box(**overrides) -> Case:
     `bilge_radius` rounds the box's two lower edges (a ship section: the
     particles outside the arcs are left out, and the box's mass with them; the
     default draft then leaves out the area of the corners too).
+    The box is uniform unless `centre_of_gravity` (the height of its centre of
+    mass above the keel, KG [m]) or `gyration` (its radius of gyration about the
+    centre of mass for heel, about the axis along the tank's width [m]) is given
+    (`Params.rigid.centre_of_mass`, `Params.rigid.gyration`).
     `body_pressure` is how the pressure acts on the box (`RigidBodies.pressure`):
     "fluid" (default; at Archimedes' draft) or "pairs".
 
@@ -227,6 +265,7 @@ def floating_box(**overrides) -> Case:
     )
     box = _round_bilges(box, x0, bw, depth, float(c["bilge_radius"]))
     box[:, -1] -= draft
+    mass_properties = _mass_properties(c, box, depth - draft)
     if c["heel"]:
         box = _rotate(box, box.mean(axis=0), float(c["heel"]))
         # Clear fluid within 0.9 l0 of the tilted faces (0.5 l0 leaves particles
@@ -238,7 +277,13 @@ def floating_box(**overrides) -> Case:
         [0.0] * dim, [length] + across + [height], l0, layers=boundary_layers(c)
     )
     scene, params, state = _body_case(
-        {**c, "mu_static": 0.0, "friction": None, "pressure": c["body_pressure"]},
+        {
+            **c,
+            **mass_properties,
+            "mu_static": 0.0,
+            "friction": None,
+            "pressure": c["body_pressure"],
+        },
         fluid,
         box,
         walls,

@@ -215,6 +215,8 @@ RULES = {
     "weir_height": _OFFSET,
     "initial_draft": _OFFSET,
     "bilge_radius": _OFFSET,
+    "centre_of_gravity": _OFFSET,
+    "gyration": _POSITIVE,
     "amplitude": _OFFSET,
     "stroke": _OFFSET,
     # angles [degrees] and slopes
