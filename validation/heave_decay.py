@@ -66,9 +66,10 @@ def _measured():
     return {name: float(value) for name, value, _ in rows[1:]}
 
 
-def _section_case(section, spacing, tank, depth, offset, t_end):
-    """The floating section released `offset` below its Archimedes draft, and
-    its mass per unit length [kg/m]."""
+def _section_case(section, spacing, tank, depth, offset, t_end, **settings):
+    """The floating section released `offset` below its Archimedes draft (and
+    with further `floating_box` settings), its mass per unit length [kg/m] and
+    its Archimedes draft [m]."""
     geometry = dict(SECTIONS[section])
     mass = geometry.pop("mass")
     if mass is None:
@@ -85,7 +86,11 @@ def _section_case(section, spacing, tank, depth, offset, t_end):
     corners = (2.0 - 0.5 * np.pi) * r**2
     draft = (mass / 1000.0 + corners) / geometry["box_width"]
     case = jaxmps.scenes.floating_box(
-        density_ratio=ratio, initial_draft=draft + offset, **geometry, **common
+        density_ratio=ratio,
+        initial_draft=draft + offset,
+        **geometry,
+        **common,
+        **settings,
     )
     return case, mass, draft
 
