@@ -16,8 +16,9 @@ be read off. In the experiment the model rolled about an axle through G, free in
 heave and held in sway by soft springs (sway period 7.5 s); here it is free in
 every direction.
 
-Run: python validation/roll_decay.py [--spacings 0.02 0.01]
-(writes results/roll_decay_ship_cpu.{json,md})
+Run: python validation/roll_decay.py [--spacings 0.02 0.01] [--merge]
+(writes results/roll_decay_ship_cpu.{json,md}; --merge keeps the rows of the
+existing file at the spacings not re-measured)
 """
 
 import argparse
@@ -143,15 +144,24 @@ def main():
     parser.add_argument("--heel", type=float, default=5.0)
     parser.add_argument("--t-end", type=float, default=4.0)
     parser.add_argument("--fit", type=float, default=3.5)
+    parser.add_argument(
+        "--merge",
+        action="store_true",
+        help="keep the rows of the existing results at spacings not re-measured",
+    )
     args = parser.parse_args()
     jax.config.update("jax_enable_x64", True)
+    path = HERE / "results" / "roll_decay_ship_cpu"
     rows = []
+    if args.merge and path.with_suffix(".json").exists():
+        old = json.loads(path.with_suffix(".json").read_text())["rows"]
+        rows = [r for r in old if r["spacing"] not in args.spacings]
     for l0 in args.spacings:
         row = measure(l0, args.tank, args.depth, args.heel, args.t_end, args.fit)
         rows.append(row)
         print(json.dumps({k: v for k, v in row.items() if k != "series"}), flush=True)
+    rows.sort(key=lambda r: -r["spacing"])
     info = machine_info()
-    path = HERE / "results" / "roll_decay_ship_cpu"
     path.with_suffix(".json").write_text(
         json.dumps({"machine": info, "args": vars(args), "rows": rows}, indent=1)
     )
