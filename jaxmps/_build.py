@@ -309,21 +309,8 @@ def add_rigid_bodies(
     active = np.asarray(state.active)
     ids, count = bodies.body_indices(body, scene.capacity, active)
     rigid_params = _rigid_params(params, count, density, mu_static, mu_kinetic)
-    spin = bodies.rotation.spin_size(scene.dim)
-    mass_rows = {
-        "centre_of_mass": bodies.per_body_rows(
-            centre_of_mass, "centre_of_mass", count, scene.dim
-        ),
-        "gyration": bodies.per_body_rows(gyration, "gyration", count, spin),
-    }
-    if mass_rows["gyration"] is not None and not np.all(mass_rows["gyration"] > 0):
-        raise ValueError(f"gyration must be positive, got {gyration}.")
-    rigid_params = dataclasses.replace(
-        rigid_params,
-        **{
-            k: None if v is None else jnp.asarray(v, params.density.dtype)
-            for k, v in mass_rows.items()
-        },
+    rigid_params = _mass_properties(
+        rigid_params, count, scene.dim, centre_of_mass, gyration
     )
     rigid, kind, velocity = bodies.rigid_state(
         np.array(state.position, np.float64),
@@ -352,6 +339,27 @@ def add_rigid_bodies(
         dataclasses.replace(scene, rigid=model),
         dataclasses.replace(params, rigid=rigid_params),
         new_state,
+    )
+
+
+def _mass_properties(
+    rigid: RigidParams, count: int, dim: int, centre_of_mass, gyration
+) -> RigidParams:
+    """`rigid` with the bodies' given centres of mass and radii of gyration (None:
+    those of their particles), checked and in its dtype."""
+    spin = bodies.rotation.spin_size(dim)
+    rows = {
+        "centre_of_mass": bodies.per_body_rows(
+            centre_of_mass, "centre_of_mass", count, dim
+        ),
+        "gyration": bodies.per_body_rows(gyration, "gyration", count, spin),
+    }
+    if rows["gyration"] is not None and not np.all(rows["gyration"] > 0):
+        raise ValueError(f"gyration must be positive, got {gyration}.")
+    dtype = rigid.density.dtype
+    return dataclasses.replace(
+        rigid,
+        **{k: None if v is None else jnp.asarray(v, dtype) for k, v in rows.items()},
     )
 
 

@@ -293,7 +293,7 @@ def test_add_rigid_bodies_rejects_bad_input():
         add(scene, params, state, ids, density=-1.0)
     with pytest.raises(ValueError, match="gyration must be positive"):
         add(scene, params, state, ids, density=500.0, gyration=0.0)
-    with pytest.raises(ValueError, match="centre_of_mass must give 2 value"):
+    with pytest.raises(ValueError, match="centre_of_mass must be 2 value"):
         add(scene, params, state, ids, density=500.0, centre_of_mass=[0.1, 0, 0])
     with pytest.raises(ValueError, match="centre_of_mass must be finite"):
         add(scene, params, state, ids, density=500.0, centre_of_mass=[np.nan, 0])

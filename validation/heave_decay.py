@@ -95,8 +95,9 @@ def _section_case(section, spacing, tank, depth, offset, t_end, **settings):
     return case, mass, draft
 
 
-def measure(section, spacing, tank, depth, offset, t_end, fit):
-    case, mass, draft = _section_case(section, spacing, tank, depth, offset, t_end)
+def rollout(case, t_end):
+    """The case's probes saved every 0.01 s to `t_end` (as arrays), the wall time
+    [s] and the run's result."""
     dt = float(case.params.dt)
     saves = round(t_end / 0.01)
     every = max(1, round(t_end / dt) // saves)
@@ -110,7 +111,12 @@ def measure(section, spacing, tank, depth, offset, t_end, fit):
         observe=jaxmps.scenes.observe_probes(case.probes),
     )
     wall = time.perf_counter() - start
-    s = {k: np.asarray(v) for k, v in out.saved.items()}
+    return {k: np.asarray(v) for k, v in out.saved.items()}, wall, out.result
+
+
+def measure(section, spacing, tank, depth, offset, t_end, fit):
+    case, mass, draft = _section_case(section, spacing, tank, depth, offset, t_end)
+    s, wall, result = rollout(case, t_end)
     t, y = s["time"], s["box_y"]
     window = t <= fit
     w, zeta, residual = fit_decay(t[window], y[window])
@@ -136,7 +142,7 @@ def measure(section, spacing, tank, depth, offset, t_end, fit):
         added_mass_over_mass=added,
         period_error=(w_th / w) - 1,
         wall_s=wall,
-        result=str(out.result),
+        result=str(result),
         series=dict(time=t.tolist(), box_y=y.tolist()),
     )
 

@@ -23,14 +23,11 @@ existing file at the spacings not re-measured)
 
 import argparse
 import json
-import time
 
 import jax
 import numpy as np
 from _common import HERE, machine_info
-from heave_decay import _measured, _section_case, fit_decay
-
-import jaxmps
+from heave_decay import _measured, _section_case, fit_decay, rollout
 
 
 def hydrostatics(beam, draft, radius, kg):
@@ -60,20 +57,7 @@ def measure(spacing, tank, depth, heel, t_end, fit):
         centre_of_gravity=kg,
         gyration=radius,
     )
-    dt = float(case.params.dt)
-    saves = round(t_end / 0.01)
-    every = max(1, round(t_end / dt) // saves)
-    start = time.perf_counter()
-    out = jaxmps.simulate(
-        case.scene,
-        case.params,
-        case.state,
-        every * saves,
-        every,
-        observe=jaxmps.scenes.observe_probes(case.probes),
-    )
-    wall = time.perf_counter() - start
-    s = {k: np.asarray(v) for k, v in out.saved.items()}
+    s, wall, result = rollout(case, t_end)
     t, angle = s["time"], np.degrees(s["box_angle"])
     window = t <= fit
     w, zeta, residual = fit_decay(t[window], angle[window])
@@ -98,7 +82,7 @@ def measure(spacing, tank, depth, heel, t_end, fit):
         zeta=zeta,
         fit_residual=residual,
         wall_s=wall,
-        result=str(out.result),
+        result=str(result),
         series=dict(
             time=t.tolist(),
             angle_deg=angle.tolist(),

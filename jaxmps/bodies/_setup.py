@@ -40,18 +40,23 @@ def body_indices(body, capacity: int, active: np.ndarray) -> tuple[np.ndarray, i
     return ids, count
 
 
-def per_body(value, name: str, count: int) -> np.ndarray:
-    """A scalar or one value per body, as a finite float array of shape (b,)."""
+def _finite(value, name: str, shape: tuple[int, ...], wanted: str) -> np.ndarray:
+    """`value` broadcast to `shape` as a finite float array (ValueError naming
+    `name` and what was `wanted` otherwise)."""
     try:
-        out = np.broadcast_to(np.asarray(value, np.float64), (count,)).copy()
+        out = np.broadcast_to(np.asarray(value, np.float64), shape).copy()
     except ValueError:
         raise ValueError(
-            f"{name} must be a scalar or one value per body ({count}), got "
-            f"shape {np.shape(value)}."
+            f"{name} must be {wanted}, got shape {np.shape(value)}."
         ) from None
     if not np.all(np.isfinite(out)):
         raise ValueError(f"{name} must be finite, got {out.tolist()}.")
     return out
+
+
+def per_body(value, name: str, count: int) -> np.ndarray:
+    """A scalar or one value per body, as a finite float array of shape (b,)."""
+    return _finite(value, name, (count,), f"a scalar or one value per body ({count})")
 
 
 def per_body_rows(value, name: str, count: int, size: int) -> np.ndarray | None:
@@ -59,16 +64,8 @@ def per_body_rows(value, name: str, count: int, size: int) -> np.ndarray | None:
     float array of shape (b, size)."""
     if value is None:
         return None
-    try:
-        out = np.broadcast_to(np.asarray(value, np.float64), (count, size)).copy()
-    except ValueError:
-        raise ValueError(
-            f"{name} must give {size} value(s) for all bodies or per body "
-            f"({count}), got shape {np.shape(value)}."
-        ) from None
-    if not np.all(np.isfinite(out)):
-        raise ValueError(f"{name} must be finite, got {out.tolist()}.")
-    return out
+    wanted = f"{size} value(s) for all bodies or per body ({count})"
+    return _finite(value, name, (count, size), wanted)
 
 
 def orientations(orientation, count: int, dim: int) -> np.ndarray:
