@@ -162,6 +162,24 @@ def _floating():
     return case.scene, case.params, case.state
 
 
+def _heeled():
+    # A box with a given centre of gravity and gyration, heeled so that both act.
+    case = jaxmps.scenes.floating_box(
+        spacing=0.02,
+        tank_length=0.4,
+        depth=0.1,
+        box_width=0.1,
+        box_height=0.06,
+        heel=5.0,
+        centre_of_gravity=0.02,
+        gyration=0.03,
+        rtol=1e-13,
+        max_iterations=5000,
+        viscosity=1e-2,
+    )
+    return case.scene, case.params, case.state
+
+
 def _sliding():
     case = jaxmps.scenes.friction_tilt(
         spacing=0.2,
@@ -179,6 +197,7 @@ SEMI = jaxmps.SemiImplicit(rtol=1e-13, max_iterations=5000)
 
 CASES = {
     "floating": _floating,
+    "heeled": _heeled,
     "sliding": _sliding,
     "semi": lambda: _tank(SEMI),
     "explicit": lambda: _tank(jaxmps.Explicit()),
@@ -202,6 +221,8 @@ FIELDS = [
     ("flume", "inflow.velocity"),
     ("floating", "rigid.density"),
     ("floating", "density"),
+    ("heeled", "rigid.centre_of_mass"),
+    ("heeled", "rigid.gyration"),
     ("sliding", "rigid.mu_kinetic"),
     ("sliding", "rigid.density"),
     ("sliding", "gravity"),
