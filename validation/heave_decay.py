@@ -16,7 +16,8 @@ w^2 (m + a33(w)) = rho g B and the radiation damping ratio b33 / (2 (m + a33) w_
 at the same depth.
 
 Run: python validation/heave_decay.py [--section box|ship] [--spacings 0.02 0.01]
-(writes results/heave_decay_cpu.{json,md}, or heave_decay_ship_cpu.*)
+[--merge] (writes results/heave_decay_cpu.{json,md}, or heave_decay_ship_cpu.*;
+--merge keeps the rows of the existing file at the spacings not re-measured)
 """
 
 import argparse
@@ -195,18 +196,27 @@ def main():
     parser.add_argument("--offset", type=float, default=0.01)
     parser.add_argument("--t-end", type=float, default=3.0)
     parser.add_argument("--fit", type=float, default=2.5)
+    parser.add_argument(
+        "--merge",
+        action="store_true",
+        help="keep the rows of the existing results at spacings not re-measured",
+    )
     args = parser.parse_args()
     jax.config.update("jax_enable_x64", True)
+    name = "heave_decay" if args.section == "box" else f"heave_decay_{args.section}"
+    path = HERE / "results" / f"{name}_cpu"
     rows = []
+    if args.merge and path.with_suffix(".json").exists():
+        old = json.loads(path.with_suffix(".json").read_text())["rows"]
+        rows = [r for r in old if r["spacing"] not in args.spacings]
     for l0 in args.spacings:
         row = measure(
             args.section, l0, args.tank, args.depth, args.offset, args.t_end, args.fit
         )
         rows.append(row)
         print(json.dumps({k: v for k, v in row.items() if k != "series"}), flush=True)
+    rows.sort(key=lambda r: -r["spacing"])
     info = machine_info()
-    name = "heave_decay" if args.section == "box" else f"heave_decay_{args.section}"
-    path = HERE / "results" / f"{name}_cpu"
     path.with_suffix(".json").write_text(
         json.dumps({"machine": info, "args": vars(args), "rows": rows}, indent=1)
     )
