@@ -148,7 +148,7 @@ def _flume():
     return case.scene, case.params, case.state
 
 
-def _floating():
+def _floating(**settings):
     case = jaxmps.scenes.floating_box(
         spacing=0.02,
         tank_length=0.4,
@@ -158,26 +158,14 @@ def _floating():
         rtol=1e-13,
         max_iterations=5000,
         viscosity=1e-2,
+        **settings,
     )
     return case.scene, case.params, case.state
 
 
 def _heeled():
     # A box with a given centre of gravity and gyration, heeled so that both act.
-    case = jaxmps.scenes.floating_box(
-        spacing=0.02,
-        tank_length=0.4,
-        depth=0.1,
-        box_width=0.1,
-        box_height=0.06,
-        heel=5.0,
-        centre_of_gravity=0.02,
-        gyration=0.03,
-        rtol=1e-13,
-        max_iterations=5000,
-        viscosity=1e-2,
-    )
-    return case.scene, case.params, case.state
+    return _floating(heel=5.0, centre_of_gravity=0.02, gyration=0.03)
 
 
 def _sliding():

@@ -21,6 +21,7 @@ Run: python validation/heave_decay.py [--section box|ship] [--spacings 0.02 0.01
 """
 
 import argparse
+import functools
 import json
 import time
 
@@ -187,32 +188,30 @@ def markdown(rows, info, args):
     return "\n".join(lines) + "\n"
 
 
-def main():
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--section", choices=sorted(SECTIONS), default="box")
+def add_decay_arguments(parser, tank, depth, t_end, fit):
+    """The options both decay scripts take, with their defaults."""
     parser.add_argument("--spacings", nargs="+", type=float, default=[0.02, 0.01])
-    parser.add_argument("--tank", type=float, default=3.0)
-    parser.add_argument("--depth", type=float, default=0.4)
-    parser.add_argument("--offset", type=float, default=0.01)
-    parser.add_argument("--t-end", type=float, default=3.0)
-    parser.add_argument("--fit", type=float, default=2.5)
+    parser.add_argument("--tank", type=float, default=tank)
+    parser.add_argument("--depth", type=float, default=depth)
+    parser.add_argument("--t-end", type=float, default=t_end)
+    parser.add_argument("--fit", type=float, default=fit)
     parser.add_argument(
         "--merge",
         action="store_true",
         help="keep the rows of the existing results at spacings not re-measured",
     )
-    args = parser.parse_args()
-    jax.config.update("jax_enable_x64", True)
-    name = "heave_decay" if args.section == "box" else f"heave_decay_{args.section}"
-    path = HERE / "results" / f"{name}_cpu"
+
+
+def write_spacings(path, args, measure_row, markdown):
+    """Measure `measure_row(l0)` at each of `args.spacings` and write the rows,
+    with those of the existing file at other spacings when `args.merge`, to
+    `path` .json and .md (`markdown(rows, info, args)`), coarsest first."""
     rows = []
     if args.merge and path.with_suffix(".json").exists():
         old = json.loads(path.with_suffix(".json").read_text())["rows"]
         rows = [r for r in old if r["spacing"] not in args.spacings]
     for l0 in args.spacings:
-        row = measure(
-            args.section, l0, args.tank, args.depth, args.offset, args.t_end, args.fit
-        )
+        row = measure_row(l0)
         rows.append(row)
         print(json.dumps({k: v for k, v in row.items() if k != "series"}), flush=True)
     rows.sort(key=lambda r: -r["spacing"])
@@ -221,6 +220,27 @@ def main():
         json.dumps({"machine": info, "args": vars(args), "rows": rows}, indent=1)
     )
     path.with_suffix(".md").write_text(markdown(rows, info, args))
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--section", choices=sorted(SECTIONS), default="box")
+    parser.add_argument("--offset", type=float, default=0.01)
+    add_decay_arguments(parser, tank=3.0, depth=0.4, t_end=3.0, fit=2.5)
+    args = parser.parse_args()
+    jax.config.update("jax_enable_x64", True)
+    name = "heave_decay" if args.section == "box" else f"heave_decay_{args.section}"
+    path = HERE / "results" / f"{name}_cpu"
+    measure_row = functools.partial(
+        measure,
+        args.section,
+        tank=args.tank,
+        depth=args.depth,
+        offset=args.offset,
+        t_end=args.t_end,
+        fit=args.fit,
+    )
+    write_spacings(path, args, measure_row, markdown)
 
 
 if __name__ == "__main__":

@@ -22,12 +22,18 @@ existing file at the spacings not re-measured)
 """
 
 import argparse
-import json
 
 import jax
 import numpy as np
-from _common import HERE, machine_info
-from heave_decay import _measured, _section_case, fit_decay, rollout
+from _common import HERE
+from heave_decay import (
+    _measured,
+    _section_case,
+    add_decay_arguments,
+    fit_decay,
+    rollout,
+    write_spacings,
+)
 
 
 def hydrostatics(beam, draft, radius, kg):
@@ -122,34 +128,17 @@ def markdown(rows, info, args):
 
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--spacings", nargs="+", type=float, default=[0.02, 0.01])
-    parser.add_argument("--tank", type=float, default=4.0)
-    parser.add_argument("--depth", type=float, default=1.0)
     parser.add_argument("--heel", type=float, default=5.0)
-    parser.add_argument("--t-end", type=float, default=4.0)
-    parser.add_argument("--fit", type=float, default=3.5)
-    parser.add_argument(
-        "--merge",
-        action="store_true",
-        help="keep the rows of the existing results at spacings not re-measured",
-    )
+    add_decay_arguments(parser, tank=4.0, depth=1.0, t_end=4.0, fit=3.5)
     args = parser.parse_args()
     jax.config.update("jax_enable_x64", True)
     path = HERE / "results" / "roll_decay_ship_cpu"
-    rows = []
-    if args.merge and path.with_suffix(".json").exists():
-        old = json.loads(path.with_suffix(".json").read_text())["rows"]
-        rows = [r for r in old if r["spacing"] not in args.spacings]
-    for l0 in args.spacings:
-        row = measure(l0, args.tank, args.depth, args.heel, args.t_end, args.fit)
-        rows.append(row)
-        print(json.dumps({k: v for k, v in row.items() if k != "series"}), flush=True)
-    rows.sort(key=lambda r: -r["spacing"])
-    info = machine_info()
-    path.with_suffix(".json").write_text(
-        json.dumps({"machine": info, "args": vars(args), "rows": rows}, indent=1)
+    write_spacings(
+        path,
+        args,
+        lambda l0: measure(l0, args.tank, args.depth, args.heel, args.t_end, args.fit),
+        markdown,
     )
-    path.with_suffix(".md").write_text(markdown(rows, info, args))
 
 
 if __name__ == "__main__":
