@@ -131,7 +131,7 @@ def standard_mps(
     high-accuracy scheme is measured against: weight r_e/r - 1 at r_e = 2.4 l0, the
     lambda Laplacian, the source rho0/dt^2 (n0 - n*)/n0 as printed, Koshizuka's
     minimum-pressure gradient, negative pressures clamped, P = 0 at the surface
-    particles (`surface_head`, replacing the solver's).
+    particles (`surface_head`, replacing the solver's) and zero-gradient dummies.
 
     Kept to reproduce the seed's comparison, not for production: its pressure
     noise in the 0.2 m hydrostatic tank at l0 = 1 cm, dt = 1 ms is ~125 % of rho g H
@@ -145,7 +145,10 @@ def standard_mps(
         r_e=2.4,
         gradient=MinimumPressureGradient(),
         solver=dataclasses.replace(
-            base, source=DensitySource(), clamp_negative_pressure=True
+            base,
+            source=DensitySource(),
+            clamp_negative_pressure=True,
+            dummy_head=False,
         ),
     )
 

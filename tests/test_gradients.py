@@ -198,7 +198,7 @@ FIELDS = [
     ("semi", "viscosity"),
     ("semi", "density"),
     ("semi", "gravity"),
-    ("semi", "dt"),
+    ("semi", "dt", 1e-4),
     ("explicit", "sound_speed"),
     ("explicit", "viscosity"),
     ("explicit", "density"),
@@ -211,7 +211,7 @@ FIELDS = [
     ("floating", "density"),
     ("heeled", "rigid.centre_of_mass"),
     ("heeled", "rigid.gyration"),
-    ("sliding", "rigid.mu_kinetic"),
+    ("sliding", "rigid.mu_kinetic", 1e-4),
     ("sliding", "rigid.density"),
     ("sliding", "gravity"),
 ]
@@ -225,8 +225,17 @@ def _loss(scene, params, state, n_steps=6):
     )
 
 
-@pytest.mark.parametrize("case_name, field", FIELDS)
-def test_gradient_matches_central_differences(case_name, field):
+# Choice of the difference step: 1e-6 |x| by default, below the kinks above. Where
+# the loss varies little over such a step its round-off decides instead: the pressure
+# solve leaves ~1e-12 of it (rtol 1e-13 on sums of ~1e3 Pa), which over a step of
+# 1e-6 dt = 1e-9 s is noise of ~1e-3 of the derivative (semi-implicit dt: forward and
+# backward differences -0.10279 and -0.10215, AD -0.10259). Those cases take 1e-4 |x|,
+# where forward and backward differences differ only by the curvature (~1e-3) and the
+# central one meets AD to 1e-8 (dt) and 1e-6 (mu_k).
+@pytest.mark.parametrize(
+    "case_name, field, step", [(*f, 1e-6) if len(f) == 2 else f for f in FIELDS]
+)
+def test_gradient_matches_central_differences(case_name, field, step):
     scene, params, state = CASES[case_name]()
     x0 = get_field(params, field)
     direction = jnp.ones_like(x0) / np.sqrt(x0.size)
@@ -236,7 +245,7 @@ def test_gradient_matches_central_differences(case_name, field):
 
     g = jax.grad(lambda p: _loss(scene, p, state))(params)
     analytic = float(jnp.vdot(get_field(g, field), direction))
-    h = 1e-6 * float(jnp.max(jnp.abs(x0)))
+    h = step * float(jnp.max(jnp.abs(x0)))
     fd = (f(h) - f(-h)) / (2 * h)
     assert np.isfinite(analytic) and abs(float(fd)) > 1e-12
     assert analytic == pytest.approx(float(fd), rel=1e-4)

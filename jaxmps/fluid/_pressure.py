@@ -28,7 +28,10 @@ def assemble_pressure_system(
     Laplacian) for pressure-carrying neighbours j. Surface neighbours have
     p_j = 0 (Dirichlet) and stay in the diagonal; dummy neighbours drop out of both
     the diagonal and the off-diagonal terms (a zero-gradient Neumann wall, seed 000
-    §2.4.2). Rows outside S are the identity, so their pressure solves to 0.
+    §2.4.2; a dummy pressure P_i + q_ij that follows its row's, such as
+    `SemiImplicit.dummy_head`'s hydrostatic one, adds sum_j c_ij q_ij to the
+    right-hand side and leaves A as it is). Rows outside S are the identity, so
+    their pressure solves to 0.
     """
     carries = jnp.logical_and(active, is_kind(kind, PRESSURE_KINDS))
     in_system = jnp.logical_and(carries, ~surface)
