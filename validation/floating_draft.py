@@ -1,6 +1,6 @@
 """Equilibrium draft of a floating box against Archimedes, over density ratio, box
-aspect ratio, water depth and resolution, for both solvers (and, with --heads,
-the semi-implicit solver's `surface_head`).
+aspect ratio, water depth and resolution, for both solvers (and, with --heads
+and --walls, the semi-implicit solver's `surface_head` and wall condition).
 
 Each case is `scenes.floating_box` released at its (lattice-rounded) Archimedes
 draft, run for `--settle` seconds, then observed every few steps for `--window`
@@ -14,11 +14,13 @@ bottom face, and from the far surface particles' centres (`level_*` minus l0/2).
 Errors are time means over the window, in units of l0 and in mm.
 
 Run: python validation/floating_draft.py [--quick] [--cases NAME ...]
-[--spacings L0 ...] [--heads H ...] (writes results/floating_draft_cpu.{json,md};
---quick runs the 2-D l0 = B/10 and B/20 rows only.)
+[--spacings L0 ...] [--heads H ...] [--walls hydrostatic zero-gradient] [--merge]
+(writes results/floating_draft_cpu.{json,md}; --quick runs the 2-D l0 = B/10 and
+B/20 rows only; --merge keeps the existing file's rows that were not re-measured.)
 """
 
 import argparse
+import itertools
 import json
 import time
 
@@ -54,12 +56,17 @@ def case_rows(quick: bool):
     return rows
 
 
-def measure(overrides, pressure, solver, settle, window, saves, head=None):
+WALLS = {"hydrostatic": True, "zero-gradient": False}
+
+
+def measure(overrides, pressure, solver, settle, window, saves, head=None, walls=None):
     case = jaxmps.scenes.floating_box(
         body_pressure=pressure, solver=solver, t_end=settle, **overrides
     )
     if head is not None:
         case = eqx.tree_at(lambda c: c.scene.solver.surface_head, case, head)
+    if walls is not None:
+        case = eqx.tree_at(lambda c: c.scene.solver.dummy_head, case, WALLS[walls])
     c, dt = case.config, float(case.params.dt)
     l0, bh = c["spacing"], c["box_height"]
     settle_steps = round(settle / dt)
@@ -86,6 +93,11 @@ def measure(overrides, pressure, solver, settle, window, saves, head=None):
         pressure=pressure,
         surface_head=(
             float(case.scene.solver.surface_head) if solver == "semi_implicit" else None
+        ),
+        walls=(
+            ("hydrostatic" if case.scene.solver.dummy_head else "zero-gradient")
+            if solver == "semi_implicit"
+            else None
         ),
         dim=int(c["dim"]),
         spacing=l0,
@@ -120,18 +132,20 @@ def markdown(rows, info):
         "itself, whatever level the free surface is taken at. 'pressure': from the",
         "pressure's free surface (`PressureLevel`) to the box's bottom face.",
         "'centres': from the far surface particles' centres to the bottom face.",
-        "head: the semi-implicit solver's `surface_head`. Target: |displaced| <= 0.3",
-        "l0, falling in mm with l0.",
+        "head: the semi-implicit solver's `surface_head`; walls: its dummies'",
+        "pressure, continued hydrostatically or with a zero gradient (`dummy_head`).",
+        "Target: |displaced| <= 0.3 l0, falling in mm with l0.",
         "",
-        "| case | solver | head | dim | B/l0 | ratio | H [m] | depth [m] |"
+        "| case | solver | head | walls | dim | B/l0 | ratio | H [m] | depth [m] |"
         " displaced [l0] | displaced [mm] | pressure [l0] | centres [l0] |"
         " std [l0] | heel [deg] | wall [s] |",
-        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for r in rows:
         head = "" if r.get("surface_head") is None else f"{r['surface_head']:g}"
         lines.append(
-            f"| {r['case']} | {r['solver']} | {head} | {r['dim']} |"
+            f"| {r['case']} | {r['solver']} | {head} | {r.get('walls') or ''} |"
+            f" {r['dim']} |"
             f" {r['box_over_l0']} | {r['density_ratio']} | {r['box_height']} |"
             f" {r['depth']} | {r['displaced_l0']:+.2f} | {r['displaced_mm']:+.2f} |"
             f" {r['error_l0']:+.2f} | {r['error_centres_l0']:+.2f} |"
@@ -155,21 +169,40 @@ def main():
         default=[None],
         help="semi-implicit surface_head values (default: the solver's)",
     )
+    parser.add_argument(
+        "--walls",
+        nargs="+",
+        choices=sorted(WALLS),
+        default=[None],
+        help="semi-implicit wall conditions (default: the solver's)",
+    )
+    parser.add_argument(
+        "--merge",
+        action="store_true",
+        help="keep the existing file's rows that are not measured again",
+    )
     parser.add_argument("--cases", nargs="*", help="only these case names")
     parser.add_argument("--spacings", nargs="*", type=float, help="only these l0")
     parser.add_argument("--out", default="floating_draft_cpu")
     args = parser.parse_args()
     jax.config.update("jax_enable_x64", True)
-    rows = []
     path = HERE / "results" / args.out
+    old = []
+    if args.merge and path.with_suffix(".json").exists():
+        old = json.loads(path.with_suffix(".json").read_text())["rows"]
+        for r in old:  # rows from before the choice of wall condition
+            if r["solver"] == "semi_implicit":
+                r.setdefault("walls", "zero-gradient")
+    rows = []
     for name, overrides in case_rows(args.quick):
         if args.cases and name not in args.cases:
             continue
         if args.spacings and overrides["spacing"] not in args.spacings:
             continue
         for solver in args.solvers:
-            heads = args.heads if solver == "semi_implicit" else [None]
-            for head in heads:
+            semi = solver == "semi_implicit"
+            heads = args.heads if semi else [None]
+            for head, walls in itertools.product(heads, args.walls if semi else [None]):
                 row = measure(
                     overrides,
                     "fluid",
@@ -178,15 +211,32 @@ def main():
                     args.window,
                     args.saves,
                     head,
+                    walls,
                 )
                 row["case"] = name
                 rows.append(row)
                 print(json.dumps(row), flush=True)
+                merged = [r for r in old if _key(r) not in {_key(n) for n in rows}]
+                merged = sorted(merged + rows, key=_order)
                 info = machine_info()
                 path.with_suffix(".json").write_text(
-                    json.dumps({"machine": info, "rows": rows}, indent=1)
+                    json.dumps({"machine": info, "rows": merged}, indent=1)
                 )
-                path.with_suffix(".md").write_text(markdown(rows, info))
+                path.with_suffix(".md").write_text(markdown(merged, info))
+
+
+def _key(row):
+    """What identifies a row: its case, solver and settings."""
+    return tuple(
+        row.get(k)
+        for k in ("case", "solver", "surface_head", "walls", "dim", "spacing")
+    )
+
+
+def _order(row):
+    """Rows by dimension, coarsest spacing first, then in the matrix's order."""
+    names = list(dict.fromkeys(name for name, _ in case_rows(False)))
+    return (row["dim"], -row["spacing"], names.index(row["case"]))
 
 
 if __name__ == "__main__":
