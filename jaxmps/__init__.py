@@ -31,6 +31,7 @@ from . import neighbours as neighbours
 from . import operators as operators
 from . import scenes as scenes
 from . import schemes as schemes
+from ._build import add_elastic_bodies as add_elastic_bodies
 from ._build import add_rigid_bodies as add_rigid_bodies
 from ._build import make_params as make_params
 from ._build import make_scene as make_scene

@@ -8,7 +8,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from . import bodies, schemes
-from ._params import Params, RigidParams
+from ._params import ElasticParams, Params, RigidParams
 from ._result import Result
 from ._scene import Scene
 from ._state import State
@@ -19,6 +19,9 @@ from .operators import Discretisation, lattice_offsets, reference_constants
 
 # Choice: the default skin of the neighbour lists, in units of l0 (see make_scene).
 NEIGHBOUR_SKIN = 0.12
+# Choice: the share of the elastic step limit a sub-step takes by default (the
+# share adaptive steps take of the hard limits, `Adaptive.stability`).
+SUBSTEP_MARGIN = 0.5
 
 
 def make_scene(
@@ -306,6 +309,11 @@ def add_rigid_bodies(
     """
     if scene.rigid is not None:
         raise ValueError("This scene already has rigid bodies; add all in one call.")
+    if scene.elastic is not None:
+        raise ValueError(
+            "Add rigid bodies before elastic ones (the rigid bodies are numbered "
+            "first)."
+        )
     active = np.asarray(state.active)
     ids, count = bodies.body_indices(body, scene.capacity, active)
     rigid_params = _rigid_params(params, count, density, mu_static, mu_kinetic)
@@ -378,4 +386,139 @@ def _rigid_params(params: Params, count: int, density, mu_static, mu_kinetic):
         density=jnp.asarray(density, dtype),
         mu_static=jnp.asarray(mu_static, dtype),
         mu_kinetic=jnp.asarray(mu_kinetic, dtype),
+    )
+
+
+def add_elastic_bodies(
+    scene: Scene,
+    params: Params,
+    state: State,
+    body,
+    *,
+    youngs_modulus,
+    poisson_ratio,
+    density,
+    clamped=None,
+    substeps: int | None = None,
+    courant: float = bodies.ElasticBodies.courant,
+) -> tuple[Scene, Params, State]:
+    """Turn particles of a built case into elastic bodies (seed 000 §2.5.2),
+    unstrained as given.
+
+    Args:
+        scene, params, state: a case (from `make_scene` etc.), with or without
+            rigid bodies (add those first).
+        body: body index of each initial particle (or of each slot), -1 for none;
+            bodies are numbered 0..b-1. Their free particles become
+            `Kind.ELASTIC`.
+        youngs_modulus: Young's modulus E [Pa], a scalar or one per body.
+        poisson_ratio: Poisson's ratio, in (-1, 0.5), a scalar or one per body.
+        density: body density [kg/m^3], a scalar or one per body.
+        clamped: which of the bodies' particles are held at their initial
+            positions (a boolean per initial particle or per slot; None: none).
+            They become `Kind.WALL` for the fluid and keep their place in their
+            body's stresses.
+        substeps: elastic sub-steps per step; None: the fewest that keep a
+            sub-step within `SUBSTEP_MARGIN` (half) of the elastic limit at
+            `Params.dt` (`ElasticBodies.time_step_limit`).
+        courant: see `jaxmps.bodies.ElasticBodies` (and its default).
+
+    Returns:
+        The new (scene, params, state).
+
+    Raises:
+        ValueError: for body indices that are not 0..b-1, bodies on inactive or
+            rigid-body slots, clamped particles outside the bodies, a particle
+            with no neighbour of its body within r_e, E or density not positive,
+            nu outside (-1, 0.5), and a `substeps` that leaves `Params.dt` beyond
+            the elastic limit.
+    """
+    if scene.elastic is not None:
+        raise ValueError("This scene already has elastic bodies; add all in one call.")
+    active = np.asarray(state.active)
+    ids, count = bodies.body_indices(body, scene.capacity, active)
+    if scene.rigid is not None and np.any(
+        (ids >= 0) & (np.asarray(state.rigid.body) >= 0)
+    ):
+        raise ValueError("body assigns rigid-body particles to an elastic body.")
+    held = _clamped(clamped, ids, scene.capacity)
+    elastic_params = _elastic_params(
+        params, count, youngs_modulus, poisson_ratio, density
+    )
+    sub = bodies.elastic_state(
+        np.array(state.position, np.float64),
+        np.array(state.velocity, np.float64),
+        ids,
+        held,
+        scene.r_e,
+        state.position.dtype,
+    )
+    if substeps is None:
+        substeps = _substeps(params, elastic_params, scene.spacing, courant)
+    model = bodies.ElasticBodies(
+        count=count,
+        spacing=scene.spacing,
+        first=0 if scene.rigid is None else scene.rigid.count,
+        substeps=int(substeps),
+        courant=courant,
+    )
+    kind = np.array(state.kind)
+    kind[(ids >= 0) & ~held] = int(Kind.ELASTIC)
+    kind[held] = int(Kind.WALL)
+    velocity = np.array(state.velocity)
+    velocity[held] = 0.0
+    new_params = dataclasses.replace(params, elastic=elastic_params)
+    new_state = dataclasses.replace(
+        state,
+        kind=jnp.asarray(kind, state.kind.dtype),
+        velocity=jnp.asarray(velocity, state.position.dtype),
+        elastic=sub,
+    )
+    model.check(new_params, new_state)
+    return dataclasses.replace(scene, elastic=model), new_params, new_state
+
+
+def _substeps(params: Params, elastic: ElasticParams, spacing: float, courant):
+    """The fewest elastic sub-steps per `Params.dt` that keep each within
+    `SUBSTEP_MARGIN` of the limit courant l0 / c_s."""
+    values = (elastic.youngs_modulus, elastic.poisson_ratio, elastic.density)
+    speed = float(np.max(bodies.shear_speed(*(np.asarray(v) for v in values))))
+    step_limit = SUBSTEP_MARGIN * courant * spacing / speed
+    return max(1, math.ceil(float(params.dt) / step_limit * (1 - 1e-9)))
+
+
+def _clamped(clamped, ids: np.ndarray, capacity: int) -> np.ndarray:
+    """The clamped mask per slot (False beyond the given entries); refuses clamped
+    particles that belong to no body."""
+    held = np.zeros(capacity, bool)
+    if clamped is None:
+        return held
+    clamped = np.asarray(clamped)
+    if clamped.ndim != 1 or clamped.shape[0] > capacity or clamped.dtype != bool:
+        raise ValueError(
+            f"clamped must be a 1-D boolean array of at most {capacity} entries, got "
+            f"shape {clamped.shape} and dtype {clamped.dtype}."
+        )
+    held[: clamped.shape[0]] = clamped
+    if np.any(held & (ids < 0)):
+        raise ValueError("clamped marks particles that belong to no elastic body.")
+    return held
+
+
+def _elastic_params(params: Params, count: int, youngs_modulus, poisson_ratio, density):
+    """Each body's E, nu and density in the dtype of `params` (ValueError for E or
+    density not positive, nu outside (-1, 0.5))."""
+    e = bodies.per_body(youngs_modulus, "youngs_modulus", count)
+    nu = bodies.per_body(poisson_ratio, "poisson_ratio", count)
+    rho = bodies.per_body(density, "density", count)
+    if not np.all((nu > -1) & (nu < 0.5)):
+        raise ValueError(
+            "poisson_ratio must lie in (-1, 0.5) (at 0.5 the body is incompressible "
+            f"and lambda infinite), got {nu.tolist()}."
+        )
+    dtype = params.density.dtype
+    return ElasticParams(
+        youngs_modulus=jnp.asarray(e, dtype),
+        poisson_ratio=jnp.asarray(nu, dtype),
+        density=jnp.asarray(rho, dtype),
     )

@@ -21,6 +21,8 @@ VALUE_RULES = {
     "rigid.mu_static": ">= 0",
     "rigid.mu_kinetic": ">= 0",
     "rigid.gyration": "positive",
+    "elastic.youngs_modulus": "positive",
+    "elastic.density": "positive",
 }
 
 
@@ -130,6 +132,23 @@ class RigidParams(eqx.Module):
         _check_fields(self, "rigid.", "", nested=False)
 
 
+class ElasticParams(eqx.Module):
+    """Per-body parameters of the elastic-body component (differentiable).
+
+    Attributes:
+        youngs_modulus: Young's modulus E of each body [Pa], shape (b,).
+        poisson_ratio: Poisson's ratio nu of each body, in (-1, 0.5), shape (b,).
+        density: density of each body [kg/m^3], shape (b,).
+    """
+
+    youngs_modulus: Float[Array, " b"] = eqx.field(converter=jnp.asarray)
+    poisson_ratio: Float[Array, " b"] = eqx.field(converter=jnp.asarray)
+    density: Float[Array, " b"] = eqx.field(converter=jnp.asarray)
+
+    def __check_init__(self):
+        _check_fields(self, "elastic.", "", nested=False)
+
+
 class Params(eqx.Module):
     """Physical coefficients. Float arrays only: changing a value never recompiles.
 
@@ -146,6 +165,8 @@ class Params(eqx.Module):
             or `StrokeParams`), present exactly when it has one.
         rigid: per-body density and friction coefficients, present exactly when the
             Scene has rigid bodies.
+        elastic: per-body Young's modulus, Poisson's ratio and density, present
+            exactly when the Scene has elastic bodies.
     """
 
     density: Float[Array, ""] = eqx.field(converter=jnp.asarray)
@@ -157,6 +178,7 @@ class Params(eqx.Module):
     inflow: InflowParams | None = None
     motion: HarmonicParams | StrokeParams | None = None
     rigid: RigidParams | None = None
+    elastic: ElasticParams | None = None
 
     def __check_init__(self):
         # Only concrete values can be checked; traced values pass through.

@@ -5,7 +5,7 @@ from typing import ClassVar
 import equinox as eqx
 
 from ._stepping import Adaptive
-from .bodies import AbstractBodyModel, RigidBodies
+from .bodies import AbstractBodyModel, ElasticBodies, RigidBodies
 from .fluid import (
     AbstractPressureSolver,
     CollisionGuard,
@@ -58,6 +58,7 @@ class Scene(eqx.Module):
         outflow: optional outflow plane returning fluid to the pool.
         motion: optional prescribed motion of wall particles (piston, shaken tank).
         rigid: optional rigid bodies (with contact and friction).
+        elastic: optional elastic bodies.
         escape_limit: how many fluid particles may leave the domain box (spray
             over an open tank) and be taken out of the run, counted in
             `State.escaped`, before the run ends with `Result.left_domain`; 0
@@ -74,7 +75,7 @@ class Scene(eqx.Module):
     # (`params.rigid.mu_kinetic`, `calibrate(..., "rigid.mu_kinetic")`). Every place
     # that goes over the models (step, checks, frames, run files) reads this tuple:
     # a new model is its module under `bodies/`, its three fields and one entry here.
-    body_fields: ClassVar[tuple[str, ...]] = ("rigid",)
+    body_fields: ClassVar[tuple[str, ...]] = ("rigid", "elastic")
 
     discretisation: Discretisation
     capacity: int
@@ -93,6 +94,7 @@ class Scene(eqx.Module):
     outflow: Outflow | None = None
     motion: PrescribedMotion | None = None
     rigid: RigidBodies | None = None
+    elastic: ElasticBodies | None = None
     time_step: Adaptive | None = None
     escape_limit: int = 0
 

@@ -51,6 +51,38 @@ class RigidState(eqx.Module):
     sliding: Bool[Array, " b"]
 
 
+class ElasticState(eqx.Module):
+    """Elastic bodies' part of the scan carry, over their m particles (clamped ones
+    included); `k` reference neighbour slots; `q` orientation components (an
+    angle in 2-D, a unit quaternion w, x, y, z in 3-D), `a` spin components.
+
+    Attributes:
+        index: each elastic particle's slot in the State, shape (m,).
+        body: its body, 0..b-1, shape (m,).
+        reference: its unstrained position [m], shape (m, d).
+        neighbours: its reference neighbours (those within r_e in the unstrained
+            body, its own body only), as elastic particle numbers, m for an empty
+            slot, shape (m, k). Fixed for the run.
+        clamped: whether it is held at its reference position, shape (m,).
+        position, velocity: at the end of the last step [m, m/s], shape (m, d).
+        rotation: its rotation, shape (m, q).
+        angular_velocity: its spin [rad/s], shape (m, a).
+        elastic_pressure: its elastic pressure -lambda eps_vol in the last step
+            [Pa], shape (m,).
+    """
+
+    index: Int[Array, " m"]
+    body: Int[Array, " m"]
+    reference: Float[Array, "m d"]
+    neighbours: Int[Array, "m k"]
+    clamped: Bool[Array, " m"]
+    position: Float[Array, "m d"]
+    velocity: Float[Array, "m d"]
+    rotation: Float[Array, "m q"]
+    angular_velocity: Float[Array, "m a"]
+    elastic_pressure: Float[Array, " m"]
+
+
 class State(eqx.Module):
     """Fixed-capacity particle state. Arrays only; its structure never changes.
 
@@ -72,6 +104,8 @@ class State(eqx.Module):
         result: the first failure of the run so far, or `Result.successful`.
         rigid: the rigid bodies' sub-state, present exactly when the Scene has
             rigid bodies.
+        elastic: the elastic bodies' sub-state, present exactly when the Scene
+            has elastic bodies.
         neighbours: the neighbour lists carried to the next step, or None (a new
             search at the start of every step). `simulate` adds it for the rollout
             (when `Scene.neighbour_skin` > 0) and removes it from what it returns
@@ -91,4 +125,5 @@ class State(eqx.Module):
     active: Bool[Array, " n"]
     result: Result
     rigid: RigidState | None = None
+    elastic: ElasticState | None = None
     neighbours: NeighbourCache | None = None

@@ -1,9 +1,19 @@
 """Bodies carried by the flow. Each kind is a body model (`AbstractBodyModel`)
 that the step couples to the fluid through two records (`jaxmps.Coupling` in,
-`jaxmps.FluidLoad` out); rigid bodies with contact and friction are the first."""
+`jaxmps.FluidLoad` out): rigid bodies with contact and friction, and elastic
+bodies."""
 
+from .._state import ElasticState as ElasticState
 from .._state import RigidState as RigidState
 from ._base import AbstractBodyModel as AbstractBodyModel
+from ._elastic import ElasticBodies as ElasticBodies
+from ._elastic import ElasticResponse as ElasticResponse
+from ._elastic import elastic_response as elastic_response
+from ._elastic import elastic_stress as elastic_stress
+from ._elastic import lame as lame
+from ._elastic import shear_speed as shear_speed
+from ._elastic_setup import elastic_state as elastic_state
+from ._elastic_setup import reference_neighbours as reference_neighbours
 from ._friction import AbstractNormalForce as AbstractNormalForce
 from ._friction import Contact as Contact
 from ._friction import ContactPressure as ContactPressure

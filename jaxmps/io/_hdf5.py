@@ -240,7 +240,8 @@ class RunWriter:
             "pressure": np.asarray(frame_batch.pressure),
             "active": np.asarray(frame_batch.active).astype(bool),
         }
-        if rows["position"].ndim == 2:  # a single frame
+        single = rows["position"].ndim == 2  # a single frame
+        if single:
             rows = {
                 k: (v if k in ("time", "step") else v[None]) for k, v in rows.items()
             }
@@ -254,7 +255,7 @@ class RunWriter:
             group = self.file.require_group("bodies")
             for name, values in bodies.items():
                 values = np.asarray(values)
-                if values.ndim == 2:  # a single frame
+                if single:
                     values = values[None]
                 if name not in group:
                     _resizable(group, name, values)

@@ -1,0 +1,325 @@
+"""Elastic bodies: the particle model of Koshizuka, Chikazawa & Oka (1999) as seed
+000 §2.5.2 uses it (the digest's §5, with its errata), advanced after the fluid
+stages like the rigid bodies."""
+
+import dataclasses
+from typing import ClassVar
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+from jaxtyping import Array, Float, Int
+
+from .._coupling import Coupling, FluidLoad
+from .._numerics import (
+    component_dot,
+    is_concrete,
+    pair_differences,
+    pair_sum,
+    safe_norm,
+    take_rows,
+)
+from .._params import Params
+from .._result import Result, update_result
+from .._state import State
+from .._types import Scalar
+from ..operators import Discretisation
+from . import rotation as rot
+from ._base import AbstractBodyModel
+
+PairVectors = tuple[Float[Array, "m k"], ...]
+
+
+def lame(youngs_modulus, poisson_ratio):
+    """Lame's constants (lambda, mu) from E and nu: lambda = E nu / ((1 + nu)
+    (1 - 2 nu)) (the digest's erratum: (1 - 2 nu), printed (1 + 2 nu)), mu = E /
+    (2 (1 + nu))."""
+    nu = poisson_ratio
+    lam = youngs_modulus * nu / ((1 + nu) * (1 - 2 * nu))
+    mu = youngs_modulus / (2 * (1 + nu))
+    return lam, mu
+
+
+def shear_speed(youngs_modulus, poisson_ratio, density):
+    """The shear-wave speed sqrt(mu / rho) [m/s], which sets the elastic step
+    limit (`ElasticBodies.courant`)."""
+    _, mu = lame(youngs_modulus, poisson_ratio)
+    return (mu / density) ** 0.5
+
+
+class ElasticResponse(eqx.Module):
+    """The internal forces of the elastic particles in one configuration.
+
+    Attributes:
+        acceleration: of each particle by its body's stresses [m/s^2], (m, d).
+        torque: spin torque on each particle, T_i = 1/2 sum_j r_ij x F_ij with
+            F_ij the shear force on i [N m, per unit depth in 2-D], (m, a).
+        pressure: the elastic pressure p_i = -lambda eps_vol [Pa], (m,).
+    """
+
+    acceleration: Float[Array, "m d"]
+    torque: Float[Array, "m a"]
+    pressure: Float[Array, " m"]
+
+
+def _reference_rotated(rotation, neighbours, r0: PairVectors, dim: int):
+    """R_ij r0_ij for every reference pair: R((theta_i + theta_j)/2) in 2-D; in 3-D
+    the mean of R(q_i) r0 and R(q_j) r0 (averaging quaternions would leave the unit
+    sphere, seed 000 eq. 2.5-60). Either way u_ji = -u_ij."""
+    if dim == 2:
+        theta = 0.5 * (rotation[:, :1] + take_rows(rotation[:, 0], neighbours))
+        c, s = jnp.cos(theta), jnp.sin(theta)
+        return (c * r0[0] - s * r0[1], s * r0[0] + c * r0[1])
+    own = rot.matrix(rotation, dim)  # (m, d, d)
+    other = take_rows(own, neighbours)  # (m, k, d, d)
+    both = 0.5 * (own[:, None] + other)
+    return tuple(sum(both[:, :, a, b] * r0[b] for b in range(dim)) for a in range(dim))
+
+
+def _strain(disc: Discretisation, reference, position, rotation, neighbours):
+    """(u, r, g) of every reference pair: the strain displacement u_ij = r_ij -
+    R_ij r0_ij, the current r_ij and w(|r0|) / |r0|^2 (0 on empty slots)."""
+    m = reference.shape[0]
+    listed = neighbours < m
+    r0 = tuple(
+        jnp.where(listed, o, 0.0) for o in pair_differences(reference, neighbours)
+    )
+    distance0 = safe_norm(r0, listed, placeholder=disc.r_e)
+    weight = disc.weight(distance0, listed & (distance0 < disc.r_e), disc.r_e)
+    r = tuple(jnp.where(listed, o, 0.0) for o in pair_differences(position, neighbours))
+    rotated = _reference_rotated(rotation, neighbours, r0, disc.dim)
+    u = tuple(a - b for a, b in zip(r, rotated, strict=True))
+    return u, r, weight / distance0**2
+
+
+def elastic_response(
+    disc: Discretisation,
+    lam: Float[Array, " m"],
+    mu: Float[Array, " m"],
+    density: Float[Array, " m"],
+    reference: Float[Array, "m d"],
+    position: Float[Array, "m d"],
+    rotation: Float[Array, "m q"],
+    neighbours: Int[Array, "m k"],
+) -> ElasticResponse:
+    """Seed 000 eq. 2.5-27...2.5-54 with the digest's signs: the strain
+    displacement u_ij = r_ij - R_ij r0_ij, the pair stresses 2 mu u_ij / |r0|
+    (normal and shear parts together: they share the coefficient), the elastic
+    pressure p_i = -lambda (d/n0) sum u_ij . r_ij / |r0|^2 w(|r0|) and
+    dv_i/dt = (2d / (rho n0)) sum [2 mu u_ij - P_ij r_ij] w(|r0|) / |r0|^2,
+    P_ij = (p_i + p_j)/2 (compression, p > 0, pushes apart). The weights are at
+    the reference distances, over the reference neighbours (`m` marks none)."""
+    dim, n0 = disc.dim, disc.n0
+    u, r, g = _strain(disc, reference, position, rotation, neighbours)
+    pressure = -lam * (dim / n0) * jnp.sum(component_dot(u, r) * g, axis=1)
+    pair_pressure = 0.5 * (pressure[:, None] + take_rows(pressure, neighbours))
+    scale = (2 * dim / n0) / density
+    acceleration = scale[:, None] * (
+        pair_sum(2 * mu[:, None] * g, u) - pair_sum(pair_pressure * g, r)
+    )
+    # The shear force on i is m_i scale 2 mu u_s g; r x u_n = 0, so r x u will do.
+    shear = disc.volume * (2 * dim / n0) * 2 * mu[:, None] * g
+    if dim == 2:
+        moment = r[0] * u[1] - r[1] * u[0]
+        torque = 0.5 * jnp.sum(shear * moment, axis=1)[:, None]
+    else:
+        moments = (
+            r[1] * u[2] - r[2] * u[1],
+            r[2] * u[0] - r[0] * u[2],
+            r[0] * u[1] - r[1] * u[0],
+        )
+        torque = 0.5 * jnp.stack([jnp.sum(shear * c, axis=1) for c in moments], -1)
+    return ElasticResponse(acceleration=acceleration, torque=torque, pressure=pressure)
+
+
+def elastic_stress(
+    disc: Discretisation,
+    mu: Float[Array, " m"],
+    reference: Float[Array, "m d"],
+    position: Float[Array, "m d"],
+    rotation: Float[Array, "m q"],
+    neighbours: Int[Array, "m k"],
+) -> Float[Array, "m d d"]:
+    """The deviatoric stress 2 mu eps_i of each particle [Pa] (the volumetric part,
+    -p, is `elastic_response`'s pressure): 2 mu (d/n0) sum u_ij r_ij^T w / |r0|^2,
+    symmetrised."""
+    u, r, g = _strain(disc, reference, position, rotation, neighbours)
+    scale = (disc.dim / disc.n0) * 2 * mu
+    rows = [
+        [scale * jnp.sum(g * u[a] * r[b], axis=1) for b in range(disc.dim)]
+        for a in range(disc.dim)
+    ]
+    stress = jnp.stack([jnp.stack(row, -1) for row in rows], -2)
+    return 0.5 * (stress + jnp.swapaxes(stress, -1, -2))
+
+
+class ElasticBodies(AbstractBodyModel):
+    """The elastic-body component of a Scene (Koshizuka et al. 1999; seed 000
+    §2.5.2): each particle carries a position, velocity, rotation and spin; the
+    stresses between reference neighbours (those within r_e in the unstrained body,
+    fixed for the run) follow from the relative displacement with the pair's mean
+    rotation removed, so large rotations carry no stress.
+
+    In a step the fluid stages advance the body particles as fluid of the body's
+    density (gravity, viscosity and pressure from the fluid across the body's
+    surface, none between particles of one body); `advance` then adds the
+    internal forces with symplectic Euler, in `substeps` sub-steps of dt/substeps
+    over which the fluid's acceleration is held. Clamped particles are wall
+    particles of the fluid that belong to a body: they hold the body and take part
+    in its stresses at their reference positions.
+
+    Attributes:
+        count: number of bodies b.
+        spacing: the bodies' particle spacing l0 [m].
+        first: the number of the first body among all models' bodies (the rigid
+            bodies are numbered first).
+        substeps: elastic sub-steps per step (static).
+        courant: the elastic stability limit C: a sub-step h must satisfy
+            h <= C l0 / c_s, c_s = sqrt(mu / rho) the shear-wave speed
+            (`time_step_limit`).
+    """
+
+    name: ClassVar[str] = "elastic"
+    frame_fields: ClassVar[tuple[str, ...]] = ("rotation", "elastic_pressure")
+    count: int
+    spacing: float
+    first: int = 0
+    substeps: int = 1
+    # Choice: the limit in the shear-wave speed, not the P-wave speed. Measured
+    # (validation/elastic_cantilever.py, the stability map: an 8-layer beam, dt
+    # split into sub-steps) the onset of instability lies at h c_s / l0 = 0.37-0.46
+    # for nu = 0, 0.3 and 0.48 alike, while in c_p it moves from 0.63 to 1.9: the
+    # fastest modes are shear and spin ones (the pressure of a checkerboard mode
+    # is nil). `add_elastic_bodies` takes half of it by default.
+    courant: float = 0.3
+
+    def __check_init__(self):
+        if self.count < 1:
+            raise ValueError("ElasticBodies.count must be at least 1.")
+        if self.substeps < 1:
+            raise ValueError("ElasticBodies.substeps must be at least 1.")
+        if not self.courant > 0:
+            raise ValueError("ElasticBodies.courant must be positive.")
+
+    def owner(self, state: State) -> Int[Array, " n"]:
+        es = state.elastic
+        n = state.position.shape[0]
+        owner = jnp.full((n,), -1, es.body.dtype)
+        return owner.at[es.index].set(es.body + self.first)
+
+    def coupling(self, params: Params, state: State) -> Coupling:
+        es = state.elastic
+        n = state.position.shape[0]
+        density = jnp.full((n,), params.density, params.density.dtype)
+        density = density.at[es.index].set(params.elastic.density[es.body])
+        return Coupling(
+            density=density,
+            owner=self.owner(state),
+            as_fluid=jnp.zeros((n,), bool),
+        )
+
+    def time_step_limit(
+        self, disc: Discretisation, params: Params, state: State
+    ) -> Scalar:
+        """substeps x courant x l0 / (the largest shear-wave speed of the
+        bodies)."""
+        del state
+        e = params.elastic
+        speed = jnp.max(shear_speed(e.youngs_modulus, e.poisson_ratio, e.density))
+        return self.substeps * self.courant * disc.spacing / speed
+
+    def check(self, params: Params, state: State) -> None:
+        b, e = self.count, params.elastic
+        for name in ("youngs_modulus", "poisson_ratio", "density"):
+            shape = getattr(e, name).shape
+            if shape != (b,):
+                raise ValueError(
+                    f"Params.elastic.{name} has shape {shape} but the Scene has {b} "
+                    f"elastic bodies (expected ({b},)). For a batch of values use "
+                    "`jaxmps.sweep` or `jax.vmap` over Params."
+                )
+        if is_concrete(e.poisson_ratio):
+            nu = np.asarray(e.poisson_ratio, np.float64)
+            if not np.all((nu > -1) & (nu < 0.5)):
+                raise ValueError(
+                    "Params.elastic.poisson_ratio must lie in (-1, 0.5) (at 0.5 the "
+                    f"body is incompressible and lambda infinite), got {nu.tolist()}."
+                )
+        self.check_time_step(params, state)
+
+    def check_time_step(self, params: Params, state: State) -> None:
+        """Refuse a concrete dt beyond the elastic limit (ValueError)."""
+        e = params.elastic
+        if not is_concrete(params.dt, e.youngs_modulus, e.poisson_ratio, e.density):
+            return
+        del state
+        values = (e.youngs_modulus, e.poisson_ratio, e.density)
+        speed = shear_speed(*(np.asarray(v, np.float64) for v in values))
+        limit = self.substeps * self.courant * self.spacing / float(np.max(speed))
+        if float(params.dt) > limit * (1 + 1e-9):
+            raise ValueError(
+                f"Params.dt = {float(params.dt):.3g} s is beyond the elastic bodies' "
+                f"stability limit {limit:.3g} s (substeps={self.substeps} x "
+                f"courant={self.courant} x l0 / c_s, c_s = "
+                f"{float(np.max(speed)):.3g} m/s from "
+                f"youngs_modulus={np.asarray(e.youngs_modulus).tolist()}): lower "
+                "dt, lower Params.elastic.youngs_modulus, or build the bodies with "
+                "more substeps (`add_elastic_bodies(..., substeps=...)`)."
+            )
+
+    def advance(
+        self, disc: Discretisation, params: Params, state: State, load: FluidLoad
+    ) -> State:
+        """Add the internal forces to the particles the fluid stages advanced: from
+        the step's start (x, v, rotation, spin), `substeps` symplectic Euler
+        sub-steps of h = dt / substeps,
+            v += h (a_fluid + a_elastic(x)),  x += h v,
+            spin += h T / I,  rotation turned by h spin,
+        with a_fluid = (v_fluid - v^k) / dt the fluid stages' acceleration and
+        I = m l0^2 / 6 (the digest's erratum); clamped particles stay put."""
+        del load
+        es, e, dim = state.elastic, params.elastic, disc.dim
+        dt = params.dt
+        h = dt / self.substeps
+        lam, mu = lame(e.youngs_modulus, e.poisson_ratio)
+        lam, mu, rho = lam[es.body], mu[es.body], e.density[es.body]
+        inertia = rho * disc.volume * disc.spacing**2 / 6.0
+        fluid_accel = (state.velocity[es.index] - es.velocity) / dt
+        free = ~es.clamped
+
+        def substep(carry, _):
+            x, v, q, spin = carry
+            response = elastic_response(
+                disc, lam, mu, rho, es.reference, x, q, es.neighbours
+            )
+            accel = fluid_accel + response.acceleration
+            v = jnp.where(free[:, None], v + h * accel, 0.0)
+            x = jnp.where(free[:, None], x + h * v, es.reference)
+            spin = spin + h * response.torque / inertia[:, None]
+            spin = jnp.where(free[:, None], spin, 0.0)
+            q = jnp.where(free[:, None], rot.rotate(q, h * spin, dim), q)
+            return (x, v, q, spin), response.pressure
+
+        carry = (es.position, es.velocity, es.rotation, es.angular_velocity)
+        (x, v, q, spin), pressure = jax.lax.scan(
+            substep, carry, None, length=self.substeps
+        )
+        limit = self.time_step_limit(disc, params, state)
+        beyond = dt > limit * (1 + 1e-9)
+        result = update_result(state.result, beyond, Result.step_too_large)
+        elastic = dataclasses.replace(
+            es,
+            position=x,
+            velocity=v,
+            rotation=q,
+            angular_velocity=spin,
+            elastic_pressure=pressure[-1],
+        )
+        return dataclasses.replace(
+            state,
+            position=state.position.at[es.index].set(x),
+            velocity=state.velocity.at[es.index].set(v),
+            elastic=elastic,
+            result=result,
+        )
