@@ -218,6 +218,8 @@ RULES = {
     "centre_of_gravity": _OFFSET,
     "gyration": _POSITIVE,
     "amplitude": _OFFSET,
+    "length": _LENGTH,
+    "thickness": _LENGTH,
     "stroke": _OFFSET,
     # angles [degrees] and slopes
     "angle": _ANGLE,
@@ -237,6 +239,10 @@ RULES = {
     "density_ratio": _POSITIVE,
     "mu_static": _NON_NEGATIVE,
     "mu_kinetic": _NON_NEGATIVE,
+    "youngs_modulus": _POSITIVE,
+    "poisson_ratio": Range(-1, 0.5, open_low=True, open_high=True),
+    "solid_density": _POSITIVE,
+    "tip_velocity": _FINITE,
 }
 
 

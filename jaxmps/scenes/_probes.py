@@ -331,3 +331,18 @@ class ModeAmplitude(AbstractProbe):
         fluid = jnp.logical_and(state.active, state.kind == int(Kind.FLUID))
         c = jnp.cos(self.wave_number * _tank_frame(state, self.anchor, self.anchor_x))
         return 2.0 / self.length * jnp.sum(jnp.where(fluid, c, 0.0)) * self.spacing**2
+
+
+class Displacement(AbstractProbe):
+    """Mean displacement [m] of the particles `particles` along `axis` from their
+    mean initial coordinate `start` (an elastic beam's tip, say)."""
+
+    name: str
+    particles: tuple[int, ...]
+    axis: int
+    start: float
+
+    def __call__(self, scene: Scene, state: State):
+        del scene
+        index = jnp.asarray(self.particles)
+        return jnp.mean(state.position[index, self.axis]) - self.start
