@@ -188,11 +188,12 @@ class ElasticBodies(AbstractBodyModel):
     substeps: int = 1
     # Choice: the limit in the shear-wave speed, not the P-wave speed. Measured
     # (validation/elastic_cantilever.py, the stability map: an 8-layer beam, dt
-    # split into sub-steps) the onset of instability lies at h c_s / l0 = 0.37-0.46
-    # for nu = 0, 0.3 and 0.48 alike, while in c_p it moves from 0.63 to 1.9: the
-    # fastest modes are shear and spin ones (the pressure of a checkerboard mode
-    # is nil). `add_elastic_bodies` takes half of it by default.
-    courant: float = 0.3
+    # split into sub-steps) the onset of instability lies at h c_s / l0 = 0.36-0.45
+    # (nu = 0), 0.39-0.46 (0.3) and 0.29-0.37 (0.48), while in c_p it moves from
+    # 0.5-0.6 to 1.5-1.9: the fastest modes are shear and spin ones (the pressure
+    # of a checkerboard mode is nil). `add_elastic_bodies` takes half of it by
+    # default.
+    courant: float = 0.25
 
     def __check_init__(self):
         if self.count < 1:
