@@ -3,7 +3,8 @@
 Everyday API, re-exported here:
 
 - building a simulation: `scenes` (built-in cases), `make_scene`, `make_params`,
-  `make_state`, `add_rigid_bodies`, `schemes` (discretisation presets);
+  `make_state`, `add_rigid_bodies`, `add_elastic_bodies`, `schemes`
+  (discretisation presets);
 - its three objects: `Scene` (static), `Params` (differentiable), `State` (the
   scan carry), with `Discretisation` and `Kind`;
 - running it: `step`, `simulate` (and `lower_simulate` to time compilation),
