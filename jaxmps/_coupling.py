@@ -4,7 +4,10 @@ Bodies → fluid (`Coupling`, built before the fluid stages): the mass density e
 particle is advanced with, and which particles belong to one body, so that the fluid
 exerts no viscous or pressure force between two particles of the same body (its
 internal forces are the body model's business) and gives body particles the
-momentum-conserving form of the pressure gradient.
+momentum-conserving form of the pressure gradient; and, for a deformable body, the
+number density its particles have in the unstrained body, so that the pressure's
+source (incompressibility) sees the body as rigid within itself and the body's
+own strain is left to its own stresses.
 
 Fluid → bodies (`FluidLoad`, built by the pressure-force stage): the pair geometry
 the pressure acted on, the pressure gradient applied to every particle, and the part
@@ -20,7 +23,7 @@ import jax.numpy as jnp
 from jaxtyping import Array, Bool, Float, Int
 
 from ._numerics import take_rows
-from .operators import Pairs
+from .operators import Pairs, number_density
 
 
 class Coupling(eqx.Module):
@@ -36,11 +39,17 @@ class Coupling(eqx.Module):
             over all their neighbours, their own body's included (the body is
             pressed like the fluid it replaces); elsewhere on a body, the pair form
             across its surface (see `fluid.pressure_force`), shape (n,).
+        reference_density: for particles of a deformable body, the number
+            density their own body gives them unstrained (its pairs at their
+            reference distances); -1 elsewhere; None: no deformable body. The
+            pressure stage's source counts these in place of the body's pairs as
+            they are (`source_view`), shape (n,).
     """
 
     density: Float[Array, " n"]
     owner: Int[Array, " n"]
     as_fluid: Bool[Array, " n"]
+    reference_density: Float[Array, " n"] | None = None
 
     @property
     def owned(self) -> Bool[Array, " n"]:
@@ -59,6 +68,30 @@ class Coupling(eqx.Module):
         would brake a spinning body with a spurious internal torque)."""
         weight = jnp.where(self.internal(pairs), 0.0, pairs.weight)
         return eqx.tree_at(lambda p: p.weight, pairs, weight)
+
+    def source_view(self, pairs: Pairs) -> tuple[Pairs, Float[Array, " n"]]:
+        """The pairs and number density the pressure's source sees: a deformable
+        body's particles see each other at their reference distances (their pairs
+        weigh 0 and their unstrained number density is added), so that the
+        incompressibility condition holds the body's surface against what is
+        outside it and not against the body's own strain, which its stresses
+        govern. A rigid body is unchanged by this (its pairs keep their reference
+        distances and its internal relative velocities are normal to them)."""
+        if self.reference_density is None:
+            return pairs, number_density(pairs)
+        held = self.reference_density >= 0
+        internal = self.internal(pairs) & held[:, None]
+        seen = eqx.tree_at(
+            lambda p: (p.valid, p.weight, p.offset),
+            pairs,
+            (
+                pairs.valid & ~internal,
+                jnp.where(internal, 0.0, pairs.weight),
+                tuple(jnp.where(internal, 0.0, o) for o in pairs.offset),
+            ),
+        )
+        own = jnp.where(held, self.reference_density, 0.0)
+        return seen, number_density(seen) + own
 
 
 class FluidLoad(eqx.Module):

@@ -8,6 +8,7 @@
     predict      u* = u^k + dt (nu lap u + g)               fluid.predict
     collide      collision guard on u*                      Scene.collision
     advect       r* = r^k + dt u*                           fluid.advect
+    <name>       a body model's internal forces in u*, r*   <model>.predict
     neighbours   lists at r*                                neighbours.search
     surface      free-surface flags at r*                   fluid.detect_surface
     pressure     PPE (semi-implicit) or equation of state   Scene.solver
@@ -75,10 +76,16 @@ def _step(
             u_star = scene.collision(disc, u_star, kind, active, pairs_k)
     with jax.named_scope("advect"):
         x_star = fluid.advect(dt, state.position, u_star, mobile)
+    for model in scene.body_models:
+        with jax.named_scope(model.name):
+            state, u_star, x_star = model.predict(disc, params, state, u_star, x_star)
 
     with jax.named_scope("neighbours"):
         nbrs, pairs = _neighbours(scene, x_star, active)
-    n_star = operators.number_density(pairs)
+    # The density a deformable body's particles have unstrained stands for their
+    # own body's pairs (`Coupling.source_view`): the surface and the pressure's
+    # source see the body rigid within itself.
+    n_star = _source_view(coupling, pairs)[1]
     surface = jnp.zeros_like(active)
     if scene.surface is not None:
         with jax.named_scope("surface"):
@@ -87,7 +94,15 @@ def _step(
             )
     with jax.named_scope("pressure"):
         inputs = _pressure_inputs(
-            state, pairs_k, pairs, n_star, surface, x_star, u_star, reference_dt
+            state,
+            pairs_k,
+            pairs,
+            n_star,
+            surface,
+            x_star,
+            u_star,
+            reference_dt,
+            coupling,
         )
         solution = scene.solver(disc, scene.laplacian, scene.grid, params, inputs)
     with jax.named_scope("correct"):
@@ -142,10 +157,18 @@ def _boundaries(
     return state, pool_short
 
 
+def _source_view(coupling: Coupling | None, pairs: operators.Pairs):
+    """`Coupling.source_view` of `pairs`; the pairs as they are without bodies."""
+    if coupling is None:
+        return pairs, operators.number_density(pairs)
+    return coupling.source_view(pairs)
+
+
 def _coupling(scene: Scene, params: Params, state: State) -> Coupling | None:
     """What the body models impose on the fluid (None in a scene without bodies).
     Each model owns its particles; their records are merged slot by slot."""
-    parts = [model.coupling(params, state) for model in scene.body_models]
+    disc = scene.discretisation
+    parts = [model.coupling(disc, params, state) for model in scene.body_models]
     if not parts:
         return None
     merged = parts[0]
@@ -154,8 +177,19 @@ def _coupling(scene: Scene, params: Params, state: State) -> Coupling | None:
             density=jnp.where(part.owned, part.density, merged.density),
             owner=jnp.where(part.owned, part.owner, merged.owner),
             as_fluid=jnp.where(part.owned, part.as_fluid, merged.as_fluid),
+            reference_density=_merged_reference(merged, part),
         )
     return merged
+
+
+def _merged_reference(merged: Coupling, part: Coupling) -> Field | None:
+    """The merged `Coupling.reference_density` (-1 where a model gives none)."""
+    if merged.reference_density is None and part.reference_density is None:
+        return None
+    unset = jnp.full_like(part.density, -1.0)
+    old = unset if merged.reference_density is None else merged.reference_density
+    new = unset if part.reference_density is None else part.reference_density
+    return jnp.where(part.owned, new, old)
 
 
 def _neighbours(
@@ -190,6 +224,7 @@ def _pressure_inputs(
     position: Positions,
     velocity: Velocities,
     reference_dt: Scalar,
+    coupling: Coupling | None,
 ) -> fluid.PressureInputs:
     """What the pressure stage may use: the tentative positions and velocities
     (r*, u*) with their pairs, number density and surface, the step's start, and
@@ -206,6 +241,7 @@ def _pressure_inputs(
         kind=state.kind,
         active=state.active,
         reference_dt=reference_dt,
+        coupling=coupling,
     )
 
 

@@ -43,7 +43,7 @@ class Held(AbstractBodyModel):
         n = state.position.shape[0]
         return jnp.full(n, -1, jnp.int32).at[state.held.index].set(self.first)
 
-    def coupling(self, params, state):
+    def coupling(self, disc, params, state):
         owner = self.owner(state)
         density = jnp.where(owner >= 0, params.held.density, params.density)
         return jaxmps.Coupling(density=density, owner=owner, as_fluid=owner >= 0)

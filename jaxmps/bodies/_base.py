@@ -9,7 +9,7 @@ from jaxtyping import Array, Int, Shaped
 from .._coupling import Coupling, FluidLoad
 from .._params import Params
 from .._state import State
-from .._types import Scalar
+from .._types import Positions, Scalar, Velocities
 from ..operators import Discretisation
 
 
@@ -20,8 +20,10 @@ class AbstractBodyModel(eqx.Module):
     sub-state in the same field of `State`; a Scene without the model holds None
     there, and its step compiles none of the model's code.
 
-    A step asks every model present for its `coupling` before the fluid stages, and
-    calls its `advance` after them with what the fluid exerted (`FluidLoad`). A model
+    A step asks every model present for its `coupling` before the fluid stages,
+    lets it add its bodies' own forces to the prediction before the pressure
+    (`predict`), and calls its `advance` after the fluid stages with what the
+    fluid exerted (`FluidLoad`). A model
     never reads or writes the fluid's internals, nor the fluid a model's state.
     Everything else that is particular to a model is asked of it too: its checks
     before a run (`check`), what a saved frame holds of it (`observe`), and which
@@ -44,9 +46,25 @@ class AbstractBodyModel(eqx.Module):
         models' bodies)."""
 
     @abc.abstractmethod
-    def coupling(self, params: Params, state: State) -> Coupling:
+    def coupling(self, disc: Discretisation, params: Params, state: State) -> Coupling:
         """What this model imposes on the fluid for its particles: their mass
-        density and which particles form one body."""
+        density, which particles form one body and, for a deformable body, their
+        unstrained number density (`Coupling.reference_density`)."""
+
+    def predict(
+        self,
+        disc: Discretisation,
+        params: Params,
+        state: State,
+        velocity: Velocities,
+        position: Positions,
+    ) -> tuple[State, Velocities, Positions]:
+        """The tentative velocities u* and positions r* of the model's particles
+        with its bodies' internal forces added, before the pressure stage (which
+        then holds what they push against); by default unchanged. `velocity` and
+        `position` are the fluid stages' u* and r* = r^k + dt u*."""
+        del disc, params
+        return state, velocity, position
 
     @abc.abstractmethod
     def advance(

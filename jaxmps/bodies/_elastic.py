@@ -23,7 +23,7 @@ from .._numerics import (
 from .._params import Params
 from .._result import Result, update_result
 from .._state import State
-from .._types import Scalar
+from .._types import Positions, Scalar, Velocities
 from ..operators import Discretisation
 from . import rotation as rot
 from ._base import AbstractBodyModel
@@ -61,6 +61,16 @@ class ElasticResponse(eqx.Module):
     acceleration: Float[Array, "m d"]
     torque: Float[Array, "m a"]
     pressure: Float[Array, " m"]
+
+
+def reference_density(disc: Discretisation, es) -> Float[Array, " m"]:
+    """Each elastic particle's number density from its own body unstrained: the
+    sum over its reference neighbours of w(|r0_ij|)."""
+    listed = es.neighbours < es.reference.shape[0]
+    r0 = pair_differences(es.reference, es.neighbours)
+    distance = safe_norm(r0, listed, placeholder=disc.r_e)
+    weight = disc.weight(distance, listed & (distance < disc.r_e), disc.r_e)
+    return jnp.sum(weight, axis=1)
 
 
 def _reference_rotated(rotation, neighbours, r0: PairVectors, dim: int):
@@ -161,13 +171,16 @@ class ElasticBodies(AbstractBodyModel):
     fixed for the run) follow from the relative displacement with the pair's mean
     rotation removed, so large rotations carry no stress.
 
-    In a step the fluid stages advance the body particles as fluid of the body's
-    density (gravity, viscosity and pressure from the fluid across the body's
-    surface, none between particles of one body); `advance` then adds the
-    internal forces with symplectic Euler, in `substeps` sub-steps of dt/substeps
-    over which the fluid's acceleration is held. Clamped particles are wall
-    particles of the fluid that belong to a body: they hold the body and take part
-    in its stresses at their reference positions.
+    In a step the fluid stages predict the body particles as fluid of the body's
+    density (gravity, viscosity across the body's surface, none between particles
+    of one body); `predict` adds the internal forces with symplectic Euler, in
+    `substeps` sub-steps of dt/substeps over which that acceleration is held; the
+    pressure then projects them with the fluid, its source seeing the body rigid
+    within itself (`Coupling.reference_density`): it acts across the body's
+    surface only, as the water's pressure and as contact with walls and other
+    bodies. Clamped particles are wall particles of the fluid that belong to a
+    body: they hold the body and take part in its stresses at their reference
+    positions.
 
     Attributes:
         count: number of bodies b.
@@ -209,15 +222,18 @@ class ElasticBodies(AbstractBodyModel):
         owner = jnp.full((n,), -1, es.body.dtype)
         return owner.at[es.index].set(es.body + self.first)
 
-    def coupling(self, params: Params, state: State) -> Coupling:
+    def coupling(self, disc: Discretisation, params: Params, state: State) -> Coupling:
         es = state.elastic
         n = state.position.shape[0]
         density = jnp.full((n,), params.density, params.density.dtype)
         density = density.at[es.index].set(params.elastic.density[es.body])
+        reference = jnp.full((n,), -1.0, density.dtype)
+        reference = reference.at[es.index].set(reference_density(disc, es))
         return Coupling(
             density=density,
             owner=self.owner(state),
             as_fluid=jnp.zeros((n,), bool),
+            reference_density=reference,
         )
 
     def time_step_limit(
@@ -265,28 +281,36 @@ class ElasticBodies(AbstractBodyModel):
                 f"courant={self.courant} x l0 / c_s, c_s = "
                 f"{float(np.max(speed)):.3g} m/s from "
                 f"youngs_modulus={np.asarray(e.youngs_modulus).tolist()}): lower "
-                "dt, lower Params.elastic.youngs_modulus, or build the bodies with "
-                "more substeps (`add_elastic_bodies(..., substeps=...)`)."
+                "dt, lower Params.elastic.youngs_modulus, or take more elastic "
+                "sub-steps per step (the scene setting `substeps`, or "
+                "`add_elastic_bodies(..., substeps=...)`)."
             )
 
-    def advance(
-        self, disc: Discretisation, params: Params, state: State, load: FluidLoad
-    ) -> State:
-        """Add the internal forces to the particles the fluid stages advanced: from
-        the step's start (x, v, rotation, spin), `substeps` symplectic Euler
-        sub-steps of h = dt / substeps,
+    def predict(
+        self,
+        disc: Discretisation,
+        params: Params,
+        state: State,
+        velocity: Velocities,
+        position: Positions,
+    ) -> tuple[State, Velocities, Positions]:
+        """Add the internal forces to the fluid stages' prediction, before the
+        pressure: from the step's start (x, v, rotation, spin), `substeps`
+        symplectic Euler sub-steps of h = dt / substeps,
             v += h (a_fluid + a_elastic(x)),  x += h v,
             spin += h T / I,  rotation turned by h spin,
-        with a_fluid = (v_fluid - v^k) / dt the fluid stages' acceleration and
-        I = m l0^2 / 6 (the digest's erratum); clamped particles stay put."""
-        del load
+        with a_fluid = (u* - v^k) / dt the prediction's acceleration (gravity,
+        viscosity) and I = m l0^2 / 6 (the digest's erratum); clamped particles
+        stay put. The pressure then projects the bodies' velocities with the fluid's
+        (contact with walls, other bodies and the water), and `advance` takes the
+        corrected velocities and positions."""
         es, e, dim = state.elastic, params.elastic, disc.dim
         dt = params.dt
         h = dt / self.substeps
         lam, mu = lame(e.youngs_modulus, e.poisson_ratio)
         lam, mu, rho = lam[es.body], mu[es.body], e.density[es.body]
         inertia = rho * disc.volume * disc.spacing**2 / 6.0
-        fluid_accel = (state.velocity[es.index] - es.velocity) / dt
+        fluid_accel = (velocity[es.index] - es.velocity) / dt
         free = ~es.clamped
 
         def substep(carry, _):
@@ -306,21 +330,28 @@ class ElasticBodies(AbstractBodyModel):
         (x, v, q, spin), pressure = jax.lax.scan(
             substep, carry, None, length=self.substeps
         )
+        elastic = dataclasses.replace(
+            es, rotation=q, angular_velocity=spin, elastic_pressure=pressure[-1]
+        )
+        return (
+            dataclasses.replace(state, elastic=elastic),
+            velocity.at[es.index].set(v),
+            position.at[es.index].set(x),
+        )
+
+    def advance(
+        self, disc: Discretisation, params: Params, state: State, load: FluidLoad
+    ) -> State:
+        """Take the bodies' particles as the pressure left them (`predict` added
+        the internal forces) and flag a step beyond the elastic limit."""
+        del load
+        es = state.elastic
         limit = self.time_step_limit(disc, params, state)
-        beyond = dt > limit * (1 + 1e-9)
+        beyond = params.dt > limit * (1 + 1e-9)
         result = update_result(state.result, beyond, Result.step_too_large)
         elastic = dataclasses.replace(
             es,
-            position=x,
-            velocity=v,
-            rotation=q,
-            angular_velocity=spin,
-            elastic_pressure=pressure[-1],
+            position=state.position[es.index],
+            velocity=state.velocity[es.index],
         )
-        return dataclasses.replace(
-            state,
-            position=state.position.at[es.index].set(x),
-            velocity=state.velocity.at[es.index].set(v),
-            elastic=elastic,
-            result=result,
-        )
+        return dataclasses.replace(state, elastic=elastic, result=result)

@@ -129,10 +129,11 @@ class RigidBodies(AbstractBodyModel):
         """Each particle's body, -1 for none (rigid bodies are numbered first)."""
         return state.rigid.body
 
-    def coupling(self, params: Params, state: State) -> Coupling:
+    def coupling(self, disc: Discretisation, params: Params, state: State) -> Coupling:
         """Body particles are advanced with their body's density (seed 000 §4.3: the
         pressure acceleration of a body particle is -grad P / rho_body), and the
         particles of one body exert no fluid force on each other."""
+        del disc
         body = self.owner(state)
         rho = take_rows(params.rigid.density, jnp.where(body >= 0, body, body.shape[0]))
         return Coupling(

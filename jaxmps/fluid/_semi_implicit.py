@@ -10,7 +10,7 @@ from .._numerics import take_rows
 from .._params import Params
 from .._types import Field, Kind, Velocities
 from ..neighbours import Grid
-from ..operators import AbstractLaplacian, Discretisation, number_density
+from ..operators import AbstractLaplacian, Discretisation
 from ._precondition import AbstractPreconditioner, Multigrid
 from ._predict import is_mobile
 from ._pressure import solve_pressure
@@ -158,12 +158,14 @@ class SemiImplicit(AbstractPressureSolver):
         # With <lap p>_i = f sum_j c_ij (p_j - p_i) (the Scene's Laplacian),
         # A p = sum_j c_ij (p_i - p_j) = -<lap p> / f, so b = -S / f for <lap p> = S
         # (eq. 2.2-14/15).
+        pairs, _ = inputs.source_pairs(inputs.pairs)
+        pairs_k, n_k = inputs.source_pairs(inputs.pairs_k)
         sources = SourceInputs(
-            pairs=inputs.pairs,
+            pairs=pairs,
             n_star=inputs.n_star,
             u_star=self._source_velocity(params, inputs),
-            pairs_k=inputs.pairs_k,
-            n_k=number_density(inputs.pairs_k),
+            pairs_k=pairs_k,
+            n_k=n_k,
             velocity_k=inputs.velocity_k,
             density=params.density,
             dt=params.dt,

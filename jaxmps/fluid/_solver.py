@@ -6,10 +6,11 @@ import equinox as eqx
 import jax.numpy as jnp
 from jaxtyping import Array, Bool, Float, Int
 
+from .._coupling import Coupling
 from .._params import Params
 from .._types import Field, Kinds, Mask, Scalar, Velocities
 from ..neighbours import Grid
-from ..operators import AbstractLaplacian, Discretisation, Pairs
+from ..operators import AbstractLaplacian, Discretisation, Pairs, number_density
 
 
 class PressureInputs(eqx.Module):
@@ -29,6 +30,8 @@ class PressureInputs(eqx.Module):
             `Params.dt`, which is the step itself with fixed steps and the largest
             step (`dt_max`) with adaptive ones (see `MixedSource`); None: the
             step itself.
+        coupling: what the bodies impose (None without bodies); a source sees
+            the pairs of `Coupling.source_view` (`n_star` is already of it).
     """
 
     pairs: Pairs
@@ -42,6 +45,14 @@ class PressureInputs(eqx.Module):
     kind: Kinds
     active: Mask
     reference_dt: Scalar | None = None
+    coupling: Coupling | None = None
+
+    def source_pairs(self, pairs: Pairs) -> tuple[Pairs, Field]:
+        """`pairs` and their number density as a source sees them
+        (`Coupling.source_view`)."""
+        if self.coupling is None:
+            return pairs, number_density(pairs)
+        return self.coupling.source_view(pairs)
 
 
 class PressureSolution(eqx.Module):

@@ -12,8 +12,11 @@ from ._case import Case as Case
 from ._common import COMMON
 from ._dam_break import DEFAULTS as _DAM_BREAK
 from ._dam_break import dam_break as dam_break
+from ._elastic import ELASTIC_BAR as _ELASTIC_BAR
 from ._elastic import ELASTIC_CANTILEVER as _ELASTIC_CANTILEVER
+from ._elastic import bar_theory as bar_theory
 from ._elastic import cantilever_theory as cantilever_theory
+from ._elastic import elastic_bar as elastic_bar
 from ._elastic import elastic_cantilever as elastic_cantilever
 from ._flume import DEFAULTS as _FLUME
 from ._flume import flume as flume
@@ -24,6 +27,8 @@ from ._probes import AbstractProbe as AbstractProbe
 from ._probes import BodyValue as BodyValue
 from ._probes import DisplacedDepth as DisplacedDepth
 from ._probes import Displacement as Displacement
+from ._probes import ElasticAmplitude as ElasticAmplitude
+from ._probes import ElasticValue as ElasticValue
 from ._probes import FluidPressureNear as FluidPressureNear
 from ._probes import FrontPosition as FrontPosition
 from ._probes import ModeAmplitude as ModeAmplitude
@@ -48,6 +53,7 @@ _REGISTRY = {
     "friction_tilt": (friction_tilt, _FRICTION_TILT),
     "dam_break": (dam_break, _DAM_BREAK),
     "dam_break_box": (dam_break_box, _DAM_BREAK_BOX),
+    "elastic_bar": (elastic_bar, _ELASTIC_BAR),
     "elastic_cantilever": (elastic_cantilever, _ELASTIC_CANTILEVER),
     "floating_box": (floating_box, _FLOATING_BOX),
     "flume": (flume, _FLUME),

@@ -8,7 +8,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .. import geometry
-from .._build import NEIGHBOUR_SKIN, add_rigid_bodies, make_state
+from .._build import NEIGHBOUR_SKIN, add_elastic_bodies, add_rigid_bodies, make_state
 from .._simulate import simulate
 from .._types import Kind
 from ..bodies import Coulomb
@@ -25,6 +25,7 @@ from ._common import (
 from ._probes import (
     BodyValue,
     DisplacedDepth,
+    ElasticValue,
     FrontPosition,
     PressureLevel,
     WallForce,
@@ -398,8 +399,12 @@ def friction_tilt(**overrides) -> Case:
 
 
 BLOCK_IMPACT = {
+    "body": "rigid",
     "block_size": 2.5,
     "density_ratio": 1.0,
+    "youngs_modulus": 1.0e6,
+    "poisson_ratio": 0.48,
+    "substeps": None,
     "velocity": 1.0,
     "gap": 0.1,
     "spacing": 0.1,
@@ -410,16 +415,26 @@ BLOCK_IMPACT = {
 
 
 def block_impact(**overrides) -> Case:
-    """Seed 000 §8.4: a rigid block (`block_size` square, `density_ratio` x `density`)
+    """Seed 000 §8.4: a block (`block_size` square, `density_ratio` x `density`)
     moving at `velocity` straight down onto a fixed floor from `gap` above it, without
     gravity. The collision force is the floor's wall pressure summed over the contact
     face (probe `wall_force`, N/m in 2-D); its time integral is the impulse, which
     lies between rho A v (plastic) and 2 rho A v (elastic rebound).
 
-    Probes: `wall_force`, `block_y`, `block_velocity_y`, `block_force_y`,
-    `block_impulse_y` (time integral of the force on the block).
+    `body` is "rigid" or "elastic" (`youngs_modulus`, `poisson_ratio`; `substeps`
+    elastic sub-steps per step, None: the fewest within the elastic limit, 1: the
+    seed's scheme, which refuses a step beyond the limit).
+
+    Probes: `wall_force`, `block_y`, `block_velocity_y` (the body's centre and
+    mean velocity); rigid also `block_force_y`, `block_impulse_y` (time integral
+    of the force on the block).
     """
     c = resolve("block_impact", BLOCK_IMPACT, overrides)
+    if c["body"] not in ("rigid", "elastic"):
+        raise ValueError(
+            f"body={c['body']!r} is not a body model of block_impact; valid: "
+            "'rigid', 'elastic'."
+        )
     l0, dim = c["spacing"], int(c["dim"])
     a = whole(c["block_size"], l0)
     gap = whole(c["gap"], l0) if c["gap"] > 0 else 0.0
@@ -440,18 +455,33 @@ def block_impact(**overrides) -> Case:
     walls, wall_kind = geometry.tank(
         [0.0] * dim, [length] + across + [height], l0, layers=boundary_layers(c)
     )
+    domain = _domain([0.0] * dim, [length] + across + [height], l0, a)
+    velocity = np.zeros(dim)
+    velocity[-1] = -float(c["velocity"])
+    lower = [side - 2 * l0] * (dim - 1) + [-l0]
+    upper = [side + a + 2 * l0] * (dim - 1) + [0.0]
+    wall_force = WallForce("wall_force", tuple(lower), tuple(upper), l0)
+    config = {**c, "block_size": a, "gap": gap}
+    if c["body"] == "elastic":
+        scene, params, state = _elastic_block(
+            c, box, walls, wall_kind, domain, velocity
+        )
+        probes = (
+            wall_force,
+            ElasticValue("block_y", 0, "centre", dim - 1),
+            ElasticValue("block_velocity_y", 0, "velocity", dim - 1),
+        )
+        return Case("block_impact", scene, params, state, probes, c["t_end"], config)
     scene, params, state = _body_case(
         {**c, "friction": None},
         np.zeros((0, dim)),
         box,
         walls,
         wall_kind,
-        _domain([0.0] * dim, [length] + across + [height], l0, a),
+        domain,
         max(abs(c["velocity"]), 1e-9),
         None,
     )
-    velocity = np.zeros(dim)
-    velocity[-1] = -float(c["velocity"])
     rigid = state.rigid
     member = np.asarray(rigid.body) >= 0
     state = eqx.tree_at(
@@ -466,17 +496,46 @@ def block_impact(**overrides) -> Case:
             jnp.asarray(velocity[None, :], state.velocity.dtype),
         ),
     )
-    lower = [side - 2 * l0] * (dim - 1) + [-l0]
-    upper = [side + a + 2 * l0] * (dim - 1) + [0.0]
     probes = (
-        WallForce("wall_force", tuple(lower), tuple(upper), l0),
+        wall_force,
         BodyValue("block_y", 0, "centre", dim - 1),
         BodyValue("block_velocity_y", 0, "velocity", dim - 1),
         BodyValue("block_force_y", 0, "force", dim - 1),
         BodyValue("block_impulse_y", 0, "impulse", dim - 1),
     )
-    config = {**c, "block_size": a, "gap": gap}
     return Case("block_impact", scene, params, state, probes, float(c["t_end"]), config)
+
+
+def _elastic_block(config, box, walls, wall_kind, domain, velocity):
+    """Scene, params and state for one elastic block moving at `velocity` among
+    walls."""
+    dim = box.shape[1]
+    position = np.concatenate([box, walls])
+    kind = np.concatenate([np.full(len(box), int(Kind.FLUID), np.int32), wall_kind])
+    stencil_box = 2.5 * (discretisation(config).r_e + NEIGHBOUR_SKIN)
+    scene = case_scene(
+        config,
+        position,
+        domain,
+        kind,
+        candidate_capacity=math.ceil(1.5 * (stencil_box + 1.0) ** dim),
+    )
+    params = case_params(config, dim, max(float(np.abs(velocity).max()), 1e-9))
+    moving = np.zeros_like(position)
+    moving[: len(box)] = velocity
+    state = make_state(scene, position, kind, velocity=moving)
+    body = np.concatenate([np.zeros(len(box), int), np.full(len(walls), -1)])
+    substeps = config["substeps"]
+    return add_elastic_bodies(
+        scene,
+        params,
+        state,
+        body,
+        youngs_modulus=config["youngs_modulus"],
+        poisson_ratio=config["poisson_ratio"],
+        density=config["density"] * config["density_ratio"],
+        substeps=None if substeps is None else int(substeps),
+    )
 
 
 DAM_BREAK_BOX = {

@@ -220,6 +220,7 @@ RULES = {
     "amplitude": _OFFSET,
     "length": _LENGTH,
     "thickness": _LENGTH,
+    "wavelength": _LENGTH,
     "stroke": _OFFSET,
     # angles [degrees] and slopes
     "angle": _ANGLE,
@@ -235,6 +236,7 @@ RULES = {
     "discharge": _POSITIVE,
     "velocity": _FINITE,  # signed: towards the floor when positive
     "pool": Range(0, 2**31 - 1),
+    "substeps": _COUNT,
     # ratios and coefficients
     "density_ratio": _POSITIVE,
     "mu_static": _NON_NEGATIVE,
@@ -270,6 +272,7 @@ _WHOLE = (
     "candidate_capacity",
     "pool",
     "escape_limit",
+    "substeps",
 )
 
 

@@ -1,15 +1,19 @@
-"""Elastic bodies in air: a cantilever under gravity (seed 000 §2.5.2, §3.2)."""
+"""Elastic bodies in air: a cantilever under gravity and a bar under a sinusoidal
+displacement (seed 000 §2.5.2, §3.2)."""
 
+import dataclasses
 import math
 
+import jax.numpy as jnp
 import numpy as np
 
 from .. import geometry
 from .._build import add_elastic_bodies, make_state
 from .._types import Kind
+from ..bodies import lame
 from ._case import Case
 from ._common import boundary_layers, case_params, case_scene, resolve, whole
-from ._probes import Displacement
+from ._probes import Displacement, ElasticAmplitude
 
 ELASTIC_CANTILEVER = {
     "length": 0.2,
@@ -102,3 +106,84 @@ def elastic_cantilever(**overrides) -> Case:
         t_end=float(c["t_end"]),
         config=config,
     )
+
+
+ELASTIC_BAR = {
+    "width": 0.2,
+    "length": 1.0,
+    "wavelength": 0.64,
+    "amplitude": 1.0e-4,
+    "spacing": 0.01,
+    "dim": 2,
+    "youngs_modulus": 1.0e3,
+    "poisson_ratio": 0.3,
+    "solid_density": 1000.0,
+    "gravity": 0.0,
+    "dt": 1.0e-3,
+    "t_end": 1.0e-3,
+}
+
+
+def bar_theory(config: dict) -> dict:
+    """The `elastic_bar`'s analytic amplitudes along its axis (plane strain,
+    u_y = A sin(k y), eps_yy = A k cos(k y)): the elastic pressure lambda A k and
+    the normal stress 2 mu A k [Pa] (0.566 and 0.755 Pa for the seed's bar)."""
+    lam, mu = lame(config["youngs_modulus"], config["poisson_ratio"])
+    strain = config["amplitude"] * 2 * math.pi / config["wavelength"]
+    return {"pressure": float(lam) * strain, "stress": 2 * float(mu) * strain}
+
+
+def elastic_bar(**overrides) -> Case:
+    """Seed 000 §3.2.1: a 2-D bar (`width` x `length`, its axis along y) given
+    the axial displacement u_y = `amplitude` sin(2 pi y / `wavelength`) from its
+    unstrained lattice, in air, run for `t_end` (one step: a static evaluation).
+
+    Probes: `pressure_amplitude` (the largest |elastic pressure|) and
+    `stress_amplitude` (the largest |2 mu eps_yy|) along the centreline, away from
+    the ends by a tenth of the length each; `bar_theory` gives their analytic
+    values.
+    """
+    c = resolve("elastic_bar", ELASTIC_BAR, overrides)
+    l0 = c["spacing"]
+    if int(c["dim"]) != 2:
+        raise ValueError("elastic_bar is a 2-D case (seed 000 §3.2.1); set dim=2.")
+    width, length = whole(c["width"], l0), whole(c["length"], l0)
+    position = geometry.block([0.0, 0.0], [width, length], l0)
+    kind = np.full(len(position), int(Kind.FLUID), np.int32)
+    domain = (
+        np.array([-0.5 * width, -0.1 * length]),
+        np.array([1.5 * width, 1.1 * length]),
+    )
+    scene = case_scene(c, position, domain, kind)
+    params = case_params(c, 2, l0 / float(c["dt"]))
+    state = make_state(scene, position, kind)
+    scene, params, state = add_elastic_bodies(
+        scene,
+        params,
+        state,
+        np.zeros(len(position), int),
+        youngs_modulus=c["youngs_modulus"],
+        poisson_ratio=c["poisson_ratio"],
+        density=c["solid_density"],
+    )
+    k = 2 * math.pi / c["wavelength"]
+    moved = position.copy()
+    moved[:, 1] += c["amplitude"] * np.sin(k * position[:, 1])
+    es = state.elastic
+    moved_elastic = jnp.asarray(moved, state.position.dtype)
+    state = dataclasses.replace(
+        state,
+        position=state.position.at[es.index].set(moved_elastic[np.asarray(es.index)]),
+        elastic=dataclasses.replace(es, position=moved_elastic[np.asarray(es.index)]),
+    )
+    reference = np.asarray(es.reference)
+    centre = np.abs(reference[:, 0] - 0.5 * width) < 0.6 * l0
+    away = np.abs(reference[:, 1] - 0.5 * length) < 0.4 * length
+    line = tuple(int(i) for i in np.nonzero(centre & away)[0])
+    _, mu = lame(c["youngs_modulus"], c["poisson_ratio"])
+    probes = (
+        ElasticAmplitude("pressure_amplitude", line, "pressure"),
+        ElasticAmplitude("stress_amplitude", line, "stress", 1, float(mu)),
+    )
+    config = {**c, "width": width, "length": length}
+    return Case("elastic_bar", scene, params, state, probes, float(c["t_end"]), config)

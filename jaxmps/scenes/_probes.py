@@ -10,6 +10,7 @@ from jaxtyping import Array, Float
 from .._scene import Scene
 from .._state import State
 from .._types import Kind
+from ..bodies import elastic_stress
 
 
 class AbstractProbe(eqx.Module):
@@ -346,3 +347,58 @@ class Displacement(AbstractProbe):
         del scene
         index = jnp.asarray(self.particles)
         return jnp.mean(state.position[index, self.axis]) - self.start
+
+
+class ElasticValue(AbstractProbe):
+    """The mean over an elastic body's particles of their position (`field`
+    "centre") or velocity ("velocity"), component `axis`."""
+
+    name: str
+    body: int
+    field: str
+    axis: int = 0
+
+    def __check_init__(self):
+        if self.field not in ("centre", "velocity"):
+            raise ValueError('ElasticValue.field must be "centre" or "velocity".')
+
+    def __call__(self, scene: Scene, state: State):
+        del scene
+        es = state.elastic
+        value = es.position if self.field == "centre" else es.velocity
+        member = es.body == self.body
+        total = jnp.sum(jnp.where(member, value[:, self.axis], 0.0))
+        return total / jnp.maximum(jnp.sum(member), 1)
+
+
+class ElasticAmplitude(AbstractProbe):
+    """The largest magnitude over the elastic particles `particles` (numbers within
+    the elastic sub-state) of their elastic pressure (`field` "pressure", from the
+    last step) or of the normal stress 2 mu eps along `axis` ("stress", with
+    `shear_modulus` mu the body's, at the state's configuration) [Pa]."""
+
+    name: str
+    particles: tuple[int, ...]
+    field: str
+    axis: int = 0
+    shear_modulus: float = 0.0
+
+    def __check_init__(self):
+        if self.field not in ("pressure", "stress"):
+            raise ValueError('ElasticAmplitude.field must be "pressure" or "stress".')
+
+    def __call__(self, scene: Scene, state: State):
+        es = state.elastic
+        index = jnp.asarray(self.particles)
+        if self.field == "pressure":
+            return jnp.max(jnp.abs(es.elastic_pressure[index]))
+        mu = jnp.full(es.index.shape, self.shear_modulus, es.position.dtype)
+        stress = elastic_stress(
+            scene.discretisation,
+            mu,
+            es.reference,
+            es.position,
+            es.rotation,
+            es.neighbours,
+        )
+        return jnp.max(jnp.abs(stress[index, self.axis, self.axis]))
