@@ -221,6 +221,7 @@ RULES = {
     "length": _LENGTH,
     "thickness": _LENGTH,
     "wavelength": _LENGTH,
+    "end_length": _OFFSET,
     "stroke": _OFFSET,
     # angles [degrees] and slopes
     "angle": _ANGLE,
@@ -245,6 +246,7 @@ RULES = {
     "poisson_ratio": Range(-1, 0.5, open_low=True, open_high=True),
     "solid_density": _POSITIVE,
     "tip_velocity": _FINITE,
+    "end_velocity": _FINITE,
 }
 
 

@@ -24,6 +24,8 @@ ELASTIC_CANTILEVER = {
     "poisson_ratio": 0.3,
     "solid_density": 1000.0,
     "tip_velocity": 0.0,
+    "end_velocity": 0.0,
+    "end_length": 0.0,
     "t_end": 0.5,
 }
 
@@ -52,7 +54,9 @@ def elastic_cantilever(**overrides) -> Case:
     """A beam of `length` and `thickness` (a square section in 3-D) along x,
     clamped at x < 0 by as many particle layers as a wall has, bending under its
     weight; `tip_velocity` starts it with the vertical velocity
-    tip_velocity (x / L)^2. No fluid.
+    tip_velocity (x / L)^2, `end_velocity` with the axial velocity end_velocity
+    on the particles within `end_length` of the free end (its last layer at 0;
+    seed 000 §3.2.2's momentum test). No fluid.
 
     Probes: `tip_x`, `tip_y` (`tip_z` in 3-D): the displacement of the free end's
     particles. `cantilever_theory` gives Euler-Bernoulli's answers. The largest
@@ -80,6 +84,8 @@ def elastic_cantilever(**overrides) -> Case:
     x = position[:, 0]
     velocity = np.zeros_like(position)
     velocity[:, -1] = np.where(x > 0, c["tip_velocity"] * (x / length) ** 2, 0.0)
+    end = x > length - max(c["end_length"], l0)
+    velocity[:, 0] = np.where(end, c["end_velocity"], 0.0)
     state = make_state(scene, position, kind, velocity=velocity)
     scene, params, state = add_elastic_bodies(
         scene,
