@@ -455,12 +455,14 @@ def add_elastic_bodies(
     )
     if substeps is None:
         substeps = _substeps(params, elastic_params, scene.spacing, courant)
+    fluid = active & (np.asarray(state.kind) == int(Kind.FLUID)) & (ids < 0)
     model = bodies.ElasticBodies(
         count=count,
         spacing=scene.spacing,
         first=0 if scene.rigid is None else scene.rigid.count,
         substeps=int(substeps),
         courant=courant,
+        wetted=bool(np.any(fluid)),
     )
     kind = np.array(state.kind)
     kind[(ids >= 0) & ~held] = int(Kind.ELASTIC)

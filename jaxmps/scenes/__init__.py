@@ -14,10 +14,13 @@ from ._dam_break import DEFAULTS as _DAM_BREAK
 from ._dam_break import dam_break as dam_break
 from ._elastic import ELASTIC_BAR as _ELASTIC_BAR
 from ._elastic import ELASTIC_CANTILEVER as _ELASTIC_CANTILEVER
+from ._elastic import ELASTIC_PLATE as _ELASTIC_PLATE
 from ._elastic import bar_theory as bar_theory
 from ._elastic import cantilever_theory as cantilever_theory
 from ._elastic import elastic_bar as elastic_bar
 from ._elastic import elastic_cantilever as elastic_cantilever
+from ._elastic import elastic_plate as elastic_plate
+from ._elastic import plate_theory as plate_theory
 from ._flume import DEFAULTS as _FLUME
 from ._flume import flume as flume
 from ._hydrostatic import DEFAULTS as _HYDROSTATIC
@@ -55,6 +58,7 @@ _REGISTRY = {
     "dam_break_box": (dam_break_box, _DAM_BREAK_BOX),
     "elastic_bar": (elastic_bar, _ELASTIC_BAR),
     "elastic_cantilever": (elastic_cantilever, _ELASTIC_CANTILEVER),
+    "elastic_plate": (elastic_plate, _ELASTIC_PLATE),
     "floating_box": (floating_box, _FLOATING_BOX),
     "flume": (flume, _FLUME),
     "hydrostatic": (hydrostatic, _HYDROSTATIC),

@@ -221,6 +221,7 @@ RULES = {
     "length": _LENGTH,
     "thickness": _LENGTH,
     "wavelength": _LENGTH,
+    "span": _LENGTH,
     "end_length": _OFFSET,
     "stroke": _OFFSET,
     # angles [degrees] and slopes

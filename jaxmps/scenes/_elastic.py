@@ -10,9 +10,16 @@ import numpy as np
 from .. import geometry
 from .._build import add_elastic_bodies, make_state
 from .._types import Kind
-from ..bodies import lame
+from ..bodies import ElasticBodies, lame, shear_speed
 from ._case import Case
-from ._common import boundary_layers, case_params, case_scene, resolve, whole
+from ._common import (
+    boundary_layers,
+    case_params,
+    case_scene,
+    resolve,
+    velocity_scale,
+    whole,
+)
 from ._probes import Displacement, ElasticAmplitude
 
 ELASTIC_CANTILEVER = {
@@ -193,3 +200,110 @@ def elastic_bar(**overrides) -> Case:
     )
     config = {**c, "width": width, "length": length}
     return Case("elastic_bar", scene, params, state, probes, float(c["t_end"]), config)
+
+
+ELASTIC_PLATE = {
+    "span": 0.2,
+    "thickness": 0.01,
+    "depth": 0.1,
+    "water": True,
+    "spacing": 0.0025,
+    "dim": 2,
+    "youngs_modulus": 2.5e7,
+    "poisson_ratio": 0.3,
+    "solid_density": 1000.0,
+    "t_end": 0.5,
+}
+
+
+def plate_theory(config: dict) -> dict:
+    """Clamped-clamped plate under a uniform load (plane strain): the mid-span
+    deflection q L^4 / (384 D) [m], D = E t^3 / (12 (1 - nu^2)), q = rho g H +
+    rho_s g t (the water column and the plate's weight) [Pa]; and the first
+    natural period in vacuo 2 pi / (22.373 / L^2 sqrt(D / (rho_s t))) [s]."""
+    e, nu = config["youngs_modulus"], config["poisson_ratio"]
+    span, t, g = config["span"], config["thickness"], config["gravity"]
+    rigidity = e * t**3 / (12 * (1 - nu**2))
+    water = config["density"] * g * config["depth"] if config.get("water", True) else 0
+    load = water + config["solid_density"] * g * t
+    omega = 22.373 / span**2 * math.sqrt(rigidity / (config["solid_density"] * t))
+    return {
+        "deflection": load * span**4 / (384 * rigidity),
+        "load": load,
+        "rigidity": rigidity,
+        "period": 2 * math.pi / omega,
+    }
+
+
+def elastic_plate(**overrides) -> Case:
+    """A water column of `depth` standing on an elastic plate (`span` between the
+    tank's walls, `thickness`) clamped at both ends under the walls, air below:
+    the fluid presses the plate, the plate holds the fluid (2-D, plane strain).
+    `water=False`: the plate alone under its weight. The largest step is within the
+    limit of a wetted elastic body (`ElasticBodies.coupling_courant`).
+
+    Probe `deflection`: the downward displacement of the plate's mid-span
+    particles [m]; `plate_theory` gives the clamped-clamped plate's static
+    answer, about which the plate, loaded at once, oscillates.
+    """
+    c = resolve("elastic_plate", ELASTIC_PLATE, overrides)
+    l0 = c["spacing"]
+    if c["dt"] == "adaptive" and c["dt_max"] is None:
+        # within the limit of a wetted elastic body (`ElasticBodies`), with margin
+        speed = shear_speed(c["youngs_modulus"], c["poisson_ratio"], c["solid_density"])
+        coupling = ElasticBodies.coupling_courant
+        c = {**c, "dt_max": 0.9 * coupling * l0 / float(speed)}
+    if int(c["dim"]) != 2:
+        raise ValueError("elastic_plate is a 2-D case; set dim=2.")
+    span, t = whole(c["span"], l0), whole(c["thickness"], l0)
+    depth = whole(c["depth"], l0) if c["water"] else 0.0
+    layers = boundary_layers(c)
+    pad = layers * l0
+    height = whole(1.3 * depth, l0) if depth > 0 else 4 * l0
+    fluid = geometry.block([0.0, 0.0], [span, depth], l0) if depth > 0 else None
+    fluid = np.zeros((0, 2)) if fluid is None else fluid
+    walls, wall_kind = geometry.tank([0.0, 0.0], [span, height], l0, layers=layers)
+    side = walls[:, 1] > 0
+    walls, wall_kind = walls[side], wall_kind[side]
+    plate = geometry.block([-pad, -t], [span + pad, 0.0], l0)
+    position = np.concatenate([fluid, plate, walls])
+    kind = np.concatenate(
+        [
+            np.full(len(fluid) + len(plate), int(Kind.FLUID), np.int32),
+            wall_kind,
+        ]
+    )
+    body = np.full(len(position), -1)
+    body[len(fluid) : len(fluid) + len(plate)] = 0
+    x = position[:, 0]
+    clamped = (body == 0) & ((x < 0) | (x > span))
+    config = {**c, "span": span, "thickness": t, "depth": depth}
+    theory = plate_theory(config)
+    domain = (
+        np.array([-pad - 2 * l0, -t - 4 * theory["deflection"] - 2 * l0]),
+        np.array([span + pad + 2 * l0, height + 0.5 * height]),
+    )
+    scene = case_scene(c, position, domain, kind)
+    params = case_params(c, 2, max(velocity_scale(depth, c["gravity"]), 1e-9))
+    state = make_state(scene, position, kind)
+    scene, params, state = add_elastic_bodies(
+        scene,
+        params,
+        state,
+        body,
+        youngs_modulus=c["youngs_modulus"],
+        poisson_ratio=c["poisson_ratio"],
+        density=c["solid_density"],
+        clamped=clamped,
+    )
+    mid = (np.abs(x - 0.5 * span) < 0.6 * l0) & (body == 0)
+    mid &= np.abs(position[:, 1] + 0.5 * t) < 0.6 * l0
+    particles = tuple(int(i) for i in np.nonzero(mid)[0])
+    probes = (
+        Displacement(
+            "deflection", particles, 1, float(position[list(particles), 1].mean()), -1.0
+        ),
+    )
+    return Case(
+        "elastic_plate", scene, params, state, probes, float(c["t_end"]), config
+    )

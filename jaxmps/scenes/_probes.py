@@ -336,17 +336,19 @@ class ModeAmplitude(AbstractProbe):
 
 class Displacement(AbstractProbe):
     """Mean displacement [m] of the particles `particles` along `axis` from their
-    mean initial coordinate `start` (an elastic beam's tip, say)."""
+    mean initial coordinate `start` (an elastic beam's tip, say), times `sign`
+    (-1: counted positive towards -axis, a deflection downwards)."""
 
     name: str
     particles: tuple[int, ...]
     axis: int
     start: float
+    sign: float = 1.0
 
     def __call__(self, scene: Scene, state: State):
         del scene
         index = jnp.asarray(self.particles)
-        return jnp.mean(state.position[index, self.axis]) - self.start
+        return self.sign * (jnp.mean(state.position[index, self.axis]) - self.start)
 
 
 class ElasticValue(AbstractProbe):
