@@ -22,6 +22,7 @@ NEIGHBOUR_SKIN = 0.12
 # Choice: the share of the elastic step limit a sub-step takes by default (the
 # share adaptive steps take of the hard limits, `Adaptive.stability`).
 SUBSTEP_MARGIN = 0.5
+MAX_CELLS = 2**31 - 1
 
 
 def make_scene(
@@ -158,6 +159,14 @@ def _grid(position: np.ndarray, domain, radius: float, reach) -> Grid:
         raise ValueError(f"reach must be a positive integer, got {reach!r}.")
     cell_size = radius / reach
     shape = np.maximum(np.ceil((upper - lower) / cell_size), 1)
+    cells = float(np.prod(shape + 2 * reach))
+    if cells > MAX_CELLS:
+        raise ValueError(
+            f"The domain box spans {cells:.3g} neighbour-search cells of "
+            f"{cell_size:.3g} m (at most {MAX_CELLS:.3g}: cells are numbered in "
+            "int32): shrink `domain` (scene override `domain_margin`), or coarsen "
+            "`spacing`."
+        )
     return Grid(
         origin=tuple(float(v) for v in lower),
         cell_size=cell_size,
@@ -415,7 +424,8 @@ def add_elastic_bodies(
         poisson_ratio: Poisson's ratio, in (-1, 0.5), a scalar or one per body.
         density: body density [kg/m^3], a scalar or one per body.
         clamped: which of the bodies' particles are held at their initial
-            positions (a boolean per initial particle or per slot; None: none).
+            positions (a boolean per initial particle or per slot, selecting at
+            least one; None: none).
             They become `Kind.WALL` for the fluid and keep their place in their
             body's stresses.
         substeps: elastic sub-steps per step; None: the fewest that keep a
@@ -482,10 +492,11 @@ def add_elastic_bodies(
 
 def _substeps(params: Params, elastic: ElasticParams, spacing: float, courant):
     """The fewest elastic sub-steps per `Params.dt` that keep each within
-    `SUBSTEP_MARGIN` of the limit courant l0 / c_s."""
+    `SUBSTEP_MARGIN` of the sub-step limit (`ElasticBodies.limits`)."""
+    model = bodies.ElasticBodies(count=1, spacing=spacing, courant=courant)
     values = (elastic.youngs_modulus, elastic.poisson_ratio, elastic.density)
-    speed = float(np.max(bodies.shear_speed(*(np.asarray(v) for v in values))))
-    step_limit = SUBSTEP_MARGIN * courant * spacing / speed
+    sub, _ = model.limits(*(np.asarray(v, np.float64) for v in values))
+    step_limit = SUBSTEP_MARGIN * float(sub) * spacing
     return max(1, math.ceil(float(params.dt) / step_limit * (1 - 1e-9)))
 
 
@@ -504,6 +515,11 @@ def _clamped(clamped, ids: np.ndarray, capacity: int) -> np.ndarray:
     held[: clamped.shape[0]] = clamped
     if np.any(held & (ids < 0)):
         raise ValueError("clamped marks particles that belong to no elastic body.")
+    if not np.any(held):
+        raise ValueError(
+            "clamped marks no particle: give clamped=None for free bodies, or a mask "
+            "that selects the particles to hold."
+        )
     return held
 
 

@@ -325,6 +325,15 @@ def test_the_elastic_limit_and_bad_settings_are_refused():
             clamped=np.array([0, 0, 1], bool),
             **settings,
         )
+    with pytest.raises(ValueError, match="clamped marks no particle"):
+        jaxmps.add_elastic_bodies(
+            base,
+            p0,
+            s0,
+            np.array([0, 0, -1]),
+            clamped=np.zeros(3, bool),
+            **settings,
+        )
     with pytest.raises(ValueError, match="youngs_modulus must be positive"):
         jaxmps.add_elastic_bodies(
             base, p0, s0, np.array([0, 0, -1]), **{**settings, "youngs_modulus": 0.0}
@@ -580,3 +589,28 @@ def test_water_weighs_on_an_elastic_plate_as_the_same_weight_would():
         jaxmps.scenes.elastic_plate(
             spacing=0.005, span=0.15, thickness=0.015, depth=0.075, dt=5e-4
         )
+
+
+def test_a_nearly_weightless_modulus_gives_a_clear_stop_not_a_nan():
+    """E -> 0: a cantilever of E = 1e-3 Pa builds in a domain of bounded size
+    (the room below it is capped at two lengths) and, sagging and folding
+    freely, stops with a result that names what overflowed (the domain, or the
+    cells its particles pile into) and saves up to it; a domain beyond
+    int32 cell numbers is refused when the scene is built."""
+    case = jaxmps.scenes.elastic_cantilever(spacing=0.005, youngs_modulus=1e-3)
+    out = jaxmps.simulate(
+        case.scene,
+        case.params,
+        case.state,
+        2000,
+        100,
+        observe=jaxmps.scenes.observe_probes(case.probes),
+        throw=False,
+    )
+    stops = (jaxmps.Result.left_domain, jaxmps.Result.cell_overflow)
+    assert any(out.result == r for r in stops), out.result
+    tip = np.asarray(out.saved["tip_y"])
+    assert np.isfinite(tip[0]) and tip[0] < 0
+    position = np.array([[0.0, 0.0], [0.01, 0.0]])
+    with pytest.raises(ValueError, match="neighbour-search cells"):
+        jaxmps.make_scene(position, 1e-4, ((-1e3, -1e3), (1e3, 1e3)))

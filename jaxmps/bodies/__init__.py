@@ -11,6 +11,7 @@ from ._elastic import ElasticResponse as ElasticResponse
 from ._elastic import elastic_response as elastic_response
 from ._elastic import elastic_stress as elastic_stress
 from ._elastic import lame as lame
+from ._elastic import pressure_speed as pressure_speed
 from ._elastic import shear_speed as shear_speed
 from ._elastic_setup import elastic_state as elastic_state
 from ._elastic_setup import reference_neighbours as reference_neighbours

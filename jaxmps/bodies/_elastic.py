@@ -48,6 +48,12 @@ def shear_speed(youngs_modulus, poisson_ratio, density):
     return (mu / density) ** 0.5
 
 
+def pressure_speed(youngs_modulus, poisson_ratio, density):
+    """The P-wave speed sqrt((lambda + 2 mu) / rho) [m/s]."""
+    lam, mu = lame(youngs_modulus, poisson_ratio)
+    return ((lam + 2 * mu) / density) ** 0.5
+
+
 class ElasticResponse(eqx.Module):
     """The internal forces of the elastic particles in one configuration.
 
@@ -195,6 +201,8 @@ class ElasticBodies(AbstractBodyModel):
             the bodies to it); then the step itself must also satisfy
             dt <= coupling_courant l0 / c_s, sub-steps or not.
         coupling_courant: that limit's constant.
+        pressure_courant: a sub-step must also satisfy h <= pressure_courant
+            l0 / c_p, c_p = sqrt((lambda + 2 mu) / rho) the P-wave speed.
     """
 
     name: ClassVar[str] = "elastic"
@@ -218,6 +226,11 @@ class ElasticBodies(AbstractBodyModel):
     # violent at 2 (8 m/s) and diverging at 3.9, whatever the sub-steps.
     wetted: bool = False
     coupling_courant: float = 0.5
+    # Choice: a bound in the P-wave speed as well, which binds as nu -> 0.5
+    # (c_p / c_s = 22 at nu = 0.499). Measured (the 8-layer beam at nu = 0.499):
+    # stable at h c_p / l0 = 0.65-1.64, diverging at 2.8 (and at nu = 0.48 the
+    # onset lies at 1.5-1.9, where the shear bound binds first).
+    pressure_courant: float = 1.0
 
     def __check_init__(self):
         if self.count < 1:
@@ -228,6 +241,8 @@ class ElasticBodies(AbstractBodyModel):
             raise ValueError("ElasticBodies.courant must be positive.")
         if not self.coupling_courant > 0:
             raise ValueError("ElasticBodies.coupling_courant must be positive.")
+        if not self.pressure_courant > 0:
+            raise ValueError("ElasticBodies.pressure_courant must be positive.")
 
     def owner(self, state: State) -> Int[Array, " n"]:
         es = state.elastic
@@ -252,17 +267,23 @@ class ElasticBodies(AbstractBodyModel):
     def time_step_limit(
         self, disc: Discretisation, params: Params, state: State
     ) -> Scalar:
-        """`step_courant` x l0 / (the largest shear-wave speed of the bodies)."""
+        """The largest stable dt [s] (`limits`)."""
         del state
         e = params.elastic
-        speed = jnp.max(shear_speed(e.youngs_modulus, e.poisson_ratio, e.density))
-        return self.step_courant() * disc.spacing / speed
+        sub, coupled = self.limits(e.youngs_modulus, e.poisson_ratio, e.density)
+        return disc.spacing * jnp.minimum(self.substeps * sub, coupled)
 
-    def step_courant(self) -> float:
-        """The limit on dt c_s / l0: substeps x courant, and at most
-        coupling_courant for a wetted body."""
-        limit = self.substeps * self.courant
-        return min(limit, self.coupling_courant) if self.wetted else limit
+    def limits(self, youngs_modulus, poisson_ratio, density):
+        """Per metre of l0 [s/m]: the largest stable sub-step, min over the bodies
+        of min(courant / c_s, pressure_courant / c_p), and the largest step of a
+        wetted body, coupling_courant / c_s (inf when dry). NumPy for NumPy
+        inputs."""
+        xp = np if isinstance(youngs_modulus, np.ndarray) else jnp
+        c_s = shear_speed(youngs_modulus, poisson_ratio, density)
+        c_p = pressure_speed(youngs_modulus, poisson_ratio, density)
+        sub = xp.min(xp.minimum(self.courant / c_s, self.pressure_courant / c_p))
+        coupled = xp.min(self.coupling_courant / c_s) if self.wetted else xp.inf
+        return sub, coupled
 
     def check(self, params: Params, state: State) -> None:
         b, e = self.count, params.elastic
@@ -289,29 +310,30 @@ class ElasticBodies(AbstractBodyModel):
         if not is_concrete(params.dt, e.youngs_modulus, e.poisson_ratio, e.density):
             return
         del state
-        values = (e.youngs_modulus, e.poisson_ratio, e.density)
-        speed = shear_speed(*(np.asarray(v, np.float64) for v in values))
-        limit = self.step_courant() * self.spacing / float(np.max(speed))
-        coupled = self.wetted and self.coupling_courant < self.substeps * self.courant
-        if coupled and float(params.dt) > limit * (1 + 1e-9):
+        values = [
+            np.asarray(v, np.float64)
+            for v in (e.youngs_modulus, e.poisson_ratio, e.density)
+        ]
+        sub, coupled = self.limits(*values)
+        dt, l0 = float(params.dt), self.spacing
+        moduli = (
+            f"youngs_modulus={values[0].tolist()}, poisson_ratio={values[1].tolist()}"
+        )
+        if dt > coupled * l0 * (1 + 1e-9) and coupled < self.substeps * sub:
             raise ValueError(
-                f"Params.dt = {float(params.dt):.3g} s is beyond the limit {limit:.3g} "
-                "s of elastic bodies in a fluid (coupling_courant="
-                f"{self.coupling_courant} x l0 / c_s, c_s = "
-                f"{float(np.max(speed)):.3g} m/s from youngs_modulus="
-                f"{np.asarray(e.youngs_modulus).tolist()}): the fluid's pressure acts "
-                "once per step, so sub-steps do not lift it. Lower dt or "
-                "Params.elastic.youngs_modulus."
+                f"Params.dt = {dt:.3g} s is beyond the limit {coupled * l0:.3g} s of "
+                f"elastic bodies in a fluid (coupling_courant={self.coupling_courant} "
+                f"x l0 / c_s, {moduli}): the fluid's pressure acts once per step, so "
+                "sub-steps do not lift it. Lower dt or Params.elastic.youngs_modulus."
             )
-        if float(params.dt) > limit * (1 + 1e-9):
+        if dt > self.substeps * sub * l0 * (1 + 1e-9):
             raise ValueError(
-                f"Params.dt = {float(params.dt):.3g} s is beyond the elastic bodies' "
-                f"stability limit {limit:.3g} s (substeps={self.substeps} x "
-                f"courant={self.courant} x l0 / c_s, c_s = "
-                f"{float(np.max(speed)):.3g} m/s from "
-                f"youngs_modulus={np.asarray(e.youngs_modulus).tolist()}): lower "
-                "dt, lower Params.elastic.youngs_modulus, or take more elastic "
-                "sub-steps per step (the scene setting `substeps`, or "
+                f"Params.dt = {dt:.3g} s is beyond the elastic bodies' stability "
+                f"limit {self.substeps * sub * l0:.3g} s (substeps={self.substeps} x "
+                f"l0 x min(courant={self.courant} / c_s, pressure_courant="
+                f"{self.pressure_courant} / c_p), {moduli}): lower dt, lower "
+                "Params.elastic.youngs_modulus, or take more elastic sub-steps per "
+                "step (the scene setting `substeps`, or "
                 "`add_elastic_bodies(..., substeps=...)`)."
             )
 

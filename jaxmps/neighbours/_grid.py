@@ -74,9 +74,14 @@ def candidate_counts(grid: Grid, position) -> np.ndarray:
     coords = np.floor((position - np.asarray(grid.origin)) / grid.cell_size)
     coords = np.clip(coords.astype(int), 0, upper)
     s = grid.reach
-    counts = np.zeros(tuple(n + 2 * s for n in grid.shape), dtype=int)
-    np.add.at(counts, tuple((coords + s).T), 1)
+    # Occupied cells only (a dense count array of a large, sparse domain would
+    # not fit in memory).
+    extent = tuple(n + 2 * s for n in grid.shape)
+    keys = np.ravel_multi_index(tuple((coords + s).T), extent)
+    occupied, counts = np.unique(keys, return_counts=True)
     total = np.zeros(len(position), dtype=int)
     for offset in stencil(dim, s):
-        total += counts[tuple((coords + s + offset).T)]
+        other = np.ravel_multi_index(tuple((coords + s + offset).T), extent)
+        slot = np.minimum(np.searchsorted(occupied, other), len(occupied) - 1)
+        total += np.where(occupied[slot] == other, counts[slot], 0)
     return total
