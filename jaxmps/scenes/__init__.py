@@ -20,6 +20,7 @@ from ._elastic import cantilever_theory as cantilever_theory
 from ._elastic import elastic_bar as elastic_bar
 from ._elastic import elastic_cantilever as elastic_cantilever
 from ._elastic import elastic_plate as elastic_plate
+from ._elastic import oscillation_mean as oscillation_mean
 from ._elastic import plate_theory as plate_theory
 from ._flume import DEFAULTS as _FLUME
 from ._flume import flume as flume

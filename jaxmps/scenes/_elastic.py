@@ -88,11 +88,11 @@ def elastic_cantilever(**overrides) -> Case:
     )
     kind = np.full(len(position), int(Kind.FLUID), np.int32)
     scene = case_scene(c, position, domain, kind)
-    # dt_max resolves the first mode (a 200th of its period), and a fall or the
-    # given velocities over the room below it (a soft beam has a long period)
+    # dt_max resolves the first mode (a 200th of its period), the given
+    # velocities, and a fall by l0 (a soft beam's period is long)
     speed = max(
         0.2 * l0 / (theory["period"] / 200),
-        velocity_scale(room, c["gravity"]),
+        velocity_scale(l0, c["gravity"]),
         abs(c["tip_velocity"]),
         abs(c["end_velocity"]),
     )
@@ -316,3 +316,21 @@ def elastic_plate(**overrides) -> Case:
     return Case(
         "elastic_plate", scene, params, state, probes, float(c["t_end"]), config
     )
+
+
+def oscillation_mean(times, values) -> tuple[float, float, int]:
+    """(mean, period, crossings) of an undamped oscillation sampled at `times`:
+    the period is the mean spacing of the upward crossings of the series' mean
+    (linear interpolation), the mean is over the whole periods between the first
+    and the last of them (the static value a plate or beam released from rest
+    swings about). Needs at least two crossings (ValueError)."""
+    t, y = np.asarray(times, float), np.asarray(values, float)
+    level = y.mean()
+    up = np.nonzero((y[:-1] < level) & (y[1:] >= level))[0]
+    if len(up) < 2:
+        raise ValueError(
+            f"{len(up)} upward crossing(s) of the mean: run over two periods or more."
+        )
+    crossing = t[up] + (level - y[up]) / (y[up + 1] - y[up]) * (t[up + 1] - t[up])
+    inside = (t >= crossing[0]) & (t < crossing[-1])
+    return float(y[inside].mean()), float(np.diff(crossing).mean()), len(up)
