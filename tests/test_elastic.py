@@ -548,8 +548,9 @@ def test_a_3d_beam_passes_its_momentum_to_the_clamp_and_back_at_the_bar_speed():
 
 def _plate_static(water):
     """The static mid-span deflection of a coarse `elastic_plate` (l0 = 5 mm, 3
-    layers, span 0.15 m, water 0.075 m): the mean of its oscillation over whole
-    periods (loaded at once from rest, it swings between 0 and twice it)."""
+    layers, span 0.15 m, water 0.075 m): the mean of its oscillation
+    (`scenes.oscillation_mean`; loaded at once from rest, it swings between 0
+    and twice it)."""
     settings = dict(
         spacing=0.005, span=0.15, thickness=0.015, depth=0.075, youngs_modulus=2.5e6
     )

@@ -318,19 +318,25 @@ def elastic_plate(**overrides) -> Case:
     )
 
 
-def oscillation_mean(times, values) -> tuple[float, float, int]:
-    """(mean, period, crossings) of an undamped oscillation sampled at `times`:
-    the period is the mean spacing of the upward crossings of the series' mean
-    (linear interpolation), the mean is over the whole periods between the first
-    and the last of them (the static value a plate or beam released from rest
-    swings about). Needs at least two crossings (ValueError)."""
+def oscillation_mean(times, values) -> tuple[float, float, float]:
+    """(mean, period, periods) of an oscillation sampled at `times` (a plate or a
+    beam released from rest swings about its static value): the least-squares fit
+    of a + b cos(w t) + c sin(w t) with the w (scanned over periods from the
+    window's length / 1.2 down to four samples) that leaves the least residual;
+    its mean a, its period 2 pi / w and how many periods the window holds. A fit
+    of the dominant mode, not a mean over crossings of the series' mean, which
+    higher modes riding on it cross too. Needs 1.2 periods (ValueError)."""
     t, y = np.asarray(times, float), np.asarray(values, float)
-    level = y.mean()
-    up = np.nonzero((y[:-1] < level) & (y[1:] >= level))[0]
-    if len(up) < 2:
-        raise ValueError(
-            f"{len(up)} upward crossing(s) of the mean: run over two periods or more."
-        )
-    crossing = t[up] + (level - y[up]) / (y[up + 1] - y[up]) * (t[up + 1] - t[up])
-    inside = (t >= crossing[0]) & (t < crossing[-1])
-    return float(y[inside].mean()), float(np.diff(crossing).mean()), len(up)
+    span = t[-1] - t[0]
+    step = float(np.median(np.diff(t)))
+    if not span > 4.8 * step:
+        raise ValueError("oscillation_mean needs a longer series (20 samples or more).")
+    best = None
+    for omega in 2 * np.pi * np.linspace(1.2 / span, 0.25 / step, 4000):
+        basis = np.stack([np.ones_like(t), np.cos(omega * t), np.sin(omega * t)], -1)
+        coef, *_ = np.linalg.lstsq(basis, y, rcond=None)
+        residual = float(np.sum((basis @ coef - y) ** 2))
+        if best is None or residual < best[0]:
+            best = (residual, float(coef[0]), 2 * np.pi / omega)
+    _, mean, period = best
+    return mean, period, span / period
