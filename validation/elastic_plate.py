@@ -18,6 +18,7 @@ Run: python validation/elastic_plate.py
 (writes results/elastic_plate_cpu.{json,md})
 """
 
+import dataclasses
 import json
 import pathlib
 import time
@@ -32,7 +33,7 @@ HERE = pathlib.Path(__file__).parent
 SHEAR = 12.5  # x (t / L)^2: 4 E / (kappa G), nu = 0.3, kappa = 5/6
 
 
-def run(water, spacing, t_end, every=20):
+def run(water, spacing, t_end, every=5):
     settings = dict(spacing=spacing)
     if not water:
         base = jaxmps.scenes.elastic_plate(**settings)
@@ -40,13 +41,22 @@ def run(water, spacing, t_end, every=20):
         dense = c["solid_density"] + c["density"] * c["depth"] / c["thickness"]
         settings.update(water=False, solid_density=dense)
     case = jaxmps.scenes.elastic_plate(**settings)
+    # Uniform steps of the scene's largest step: saves that land on given times
+    # shorten steps, and the dense plate's oscillation degrades under such uneven
+    # steps (a Courant failure at saves every 0.2 ms; open).
+    dt = float(case.params.dt)
+    case = dataclasses.replace(
+        case, scene=dataclasses.replace(case.scene, time_step=None)
+    )
     theory = jaxmps.scenes.plate_theory(case.config)
+    n = round(t_end / dt) // every * every
     start = time.perf_counter()
     out = jaxmps.simulate(
         case.scene,
         case.params,
         case.state,
-        times=np.linspace(0.0, t_end, int(t_end / (every * 1.0e-5)) + 1)[1:],
+        n_steps=n,
+        save_every=every,
         observe=jaxmps.scenes.observe_probes(case.probes),
         throw=False,
     )
@@ -56,6 +66,9 @@ def run(water, spacing, t_end, every=20):
     static, period, periods = jaxmps.scenes.oscillation_mean(t, w)
     first = int(np.argmax(w[: len(w) // 2]))
     rest = w[first:]
+    # loaded at once from rest, an undamped plate first swings to twice its
+    # static deflection: half the first peak is a second estimate
+    first_swing = 0.5 * float(w[first])
     return dict(
         water=water,
         spacing=spacing,
@@ -65,6 +78,7 @@ def run(water, spacing, t_end, every=20):
         substeps=case.scene.elastic.substeps,
         theory=theory["deflection"],
         static=float(static),
+        first_swing=first_swing,
         period=float(period),
         periods=periods,
         series=[float(v) for v in w],
@@ -96,14 +110,17 @@ def main():
         "mean of a fit of the dominant mode (`scenes.oscillation_mean`).",
         "",
         "| load | layers | particles | dt [s] | sub-steps | static [mm] "
-        "| / theory | period [s] | oscillation [mm] | wall [s] | result |",
-        "|---|---|---|---|---|---|---|---|---|---|---|",
+        "| / theory | half the first peak [mm] | / theory | period [s] "
+        "| oscillation [mm] | wall [s] | result |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for r in rows:
         lines.append(
             f"| {'water' if r['water'] else 'own weight'} | {r['layers']} "
             f"| {r['particles']} | {r['dt']:.3g} | {r['substeps']} "
-            f"| {1e3 * r['static']:.3f} | {r['ratio']:.3f} | {r['period']:.4f} "
+            f"| {1e3 * r['static']:.3f} | {r['ratio']:.3f} "
+            f"| {1e3 * r['first_swing']:.3f} | {r['first_swing'] / r['theory']:.3f} "
+            f"| {r['period']:.4f} "
             f"| {1e3 * r['range'][0]:.2f}-{1e3 * r['range'][1]:.2f} "
             f"| {r['wall_s']:.0f} | {r['result']} |"
         )
@@ -111,7 +128,8 @@ def main():
     dry = next(r for r in rows if not r["water"] and r["spacing"] == wet["spacing"])
     lines += [
         "",
-        f"Wet / dry at {wet['layers']} layers: {wet['static'] / dry['static']:.3f}.",
+        f"Wet / dry at {wet['layers']} layers: {wet['static'] / dry['static']:.3f} "
+        f"(fit), {wet['first_swing'] / dry['first_swing']:.3f} (first swing).",
         "",
         f"Machine: {out['machine']}",
     ]
