@@ -78,7 +78,9 @@ def _step(
         x_star = fluid.advect(dt, state.position, u_star, mobile)
     for model in scene.body_models:
         with jax.named_scope(model.name):
-            state, u_star, x_star = model.predict(disc, params, state, u_star, x_star)
+            state, u_star, x_star = model.predict(
+                disc, params, state, u_star, x_star, reference_dt
+            )
 
     with jax.named_scope("neighbours"):
         nbrs, pairs = _neighbours(scene, x_star, active)

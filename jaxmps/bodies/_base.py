@@ -58,12 +58,14 @@ class AbstractBodyModel(eqx.Module):
         state: State,
         velocity: Velocities,
         position: Positions,
+        reference_dt: Scalar | None = None,
     ) -> tuple[State, Velocities, Positions]:
         """The tentative velocities u* and positions r* of the model's particles
         with its bodies' internal forces added, before the pressure stage (which
         then holds what they push against); by default unchanged. `velocity` and
-        `position` are the fluid stages' u* and r* = r^k + dt u*."""
-        del disc, params
+        `position` are the fluid stages' u* and r* = r^k + dt u*; `reference_dt`
+        the largest step (`Params.dt` of the run; `params.dt` is this step's)."""
+        del disc, params, reference_dt
         return state, velocity, position
 
     @abc.abstractmethod
