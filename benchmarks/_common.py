@@ -190,6 +190,24 @@ def time_compiled(lower, *args, repeats: int = 3, max_timed_s=math.inf, **kwargs
     )
 
 
+def compile_and_run(scene, params, state, n_steps: int) -> tuple[float, float]:
+    """(trace + lower + compile [s], best of 3 runs [s]) of `n_steps` steps saving
+    the last frame (`time_compiled` of `jaxmps.lower_simulate`)."""
+    import jaxmps
+
+    timed = time_compiled(
+        jaxmps.lower_simulate,
+        scene,
+        params,
+        state,
+        n_steps,
+        n_steps,
+        jaxmps.frame,
+        throw=False,
+    )
+    return timed.trace_lower_s + timed.compile_s, timed.run_s_best
+
+
 def fixed_steps(case):
     """`case` stepping by its `Params.dt` every step (its scene's largest step):
     the per-step cost the throughput scripts measure, comparable with the peers'

@@ -22,7 +22,7 @@ import pathlib
 
 import jax
 import jax.numpy as jnp
-from _common import fixed_steps, loadavg, machine_info, time_compiled
+from _common import compile_and_run, fixed_steps, loadavg, machine_info
 
 import jaxmps
 
@@ -37,21 +37,6 @@ def without_elastic(case):
         dataclasses.replace(case.params, elastic=None),
         dataclasses.replace(case.state, kind=kind, elastic=None),
     )
-
-
-def measure(scene, params, state, n_steps):
-    """(compile [s], best of 3 runs [s])."""
-    timed = time_compiled(
-        jaxmps.lower_simulate,
-        scene,
-        params,
-        state,
-        n_steps,
-        n_steps,
-        jaxmps.frame,
-        throw=False,
-    )
-    return timed.trace_lower_s + timed.compile_s, timed.run_s_best
 
 
 def main():
@@ -72,8 +57,8 @@ def main():
         n = int(case.state.active.sum())
         m = int(case.state.elastic.index.shape[0])
         substeps = case.scene.elastic.substeps
-        c_with, r_with = measure(case.scene, case.params, case.state, n_steps)
-        c_without, r_without = measure(*without_elastic(case), n_steps)
+        c_with, r_with = compile_and_run(case.scene, case.params, case.state, n_steps)
+        c_without, r_without = compile_and_run(*without_elastic(case), n_steps)
         rows.append(
             dict(
                 case=name,

@@ -13,7 +13,7 @@ import json
 import pathlib
 
 import jax.numpy as jnp
-from _common import fixed_steps, loadavg, machine_info, time_compiled
+from _common import compile_and_run, fixed_steps, loadavg, machine_info
 
 import jaxmps
 
@@ -30,21 +30,6 @@ def without_bodies(case):
     )
 
 
-def measure(scene, params, state, n_steps):
-    """(compile [s], best of 3 runs [s])."""
-    timed = time_compiled(
-        jaxmps.lower_simulate,
-        scene,
-        params,
-        state,
-        n_steps,
-        n_steps,
-        jaxmps.frame,
-        throw=False,
-    )
-    return timed.trace_lower_s + timed.compile_s, timed.run_s_best
-
-
 def main():
     rows = []
     cases = {
@@ -55,8 +40,8 @@ def main():
     n_steps = 200
     for name, case in cases.items():
         n = int(case.state.active.sum())
-        c_body, r_body = measure(case.scene, case.params, case.state, n_steps)
-        c_free, r_free = measure(*without_bodies(case), n_steps)
+        c_body, r_body = compile_and_run(case.scene, case.params, case.state, n_steps)
+        c_free, r_free = compile_and_run(*without_bodies(case), n_steps)
         rows.append(
             dict(
                 scene=name,

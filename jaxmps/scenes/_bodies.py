@@ -51,6 +51,20 @@ def _orientation(dim: int, degrees: float):
     return [[0.0, -degrees, 0.0]]  # rotation about y taking x towards z is -angle
 
 
+def _body_scene(config, position, domain, kind):
+    """The scene of a case with bodies. A rotating or deforming body fills cells
+    differently from the initial lattice: allow the densest lattice packing of a
+    particle's stencil box (5 cells of (r_e + skin) / 2 a side), with margin."""
+    stencil_box = 2.5 * (discretisation(config).r_e + NEIGHBOUR_SKIN)
+    return case_scene(
+        config,
+        position,
+        domain,
+        kind,
+        candidate_capacity=math.ceil(1.5 * (stencil_box + 1.0) ** position.shape[1]),
+    )
+
+
 def _body_case(config, fluid, box, walls, wall_kind, domain, speed, orientation):
     """Scene, params and state for fluid + one rigid box + walls."""
     dim = box.shape[1]
@@ -65,17 +79,7 @@ def _body_case(config, fluid, box, walls, wall_kind, domain, speed, orientation)
     body = np.concatenate(
         [np.full(len(fluid), -1), np.zeros(len(box), int), np.full(len(walls), -1)]
     )
-    # A rotating body fills cells differently from the initial lattice: allow the
-    # densest lattice packing of a particle's stencil box (5 cells of
-    # (r_e + skin) / 2 a side), with margin.
-    stencil_box = 2.5 * (discretisation(config).r_e + NEIGHBOUR_SKIN)
-    scene = case_scene(
-        config,
-        position,
-        domain,
-        kind,
-        candidate_capacity=math.ceil(1.5 * (stencil_box + 1.0) ** dim),
-    )
+    scene = _body_scene(config, position, domain, kind)
     params = case_params(config, dim, speed)
     state = make_state(scene, position, kind)
     friction = config.get("friction", Coulomb())
@@ -512,14 +516,7 @@ def _elastic_block(config, box, walls, wall_kind, domain, velocity):
     dim = box.shape[1]
     position = np.concatenate([box, walls])
     kind = np.concatenate([np.full(len(box), int(Kind.FLUID), np.int32), wall_kind])
-    stencil_box = 2.5 * (discretisation(config).r_e + NEIGHBOUR_SKIN)
-    scene = case_scene(
-        config,
-        position,
-        domain,
-        kind,
-        candidate_capacity=math.ceil(1.5 * (stencil_box + 1.0) ** dim),
-    )
+    scene = _body_scene(config, position, domain, kind)
     params = case_params(config, dim, max(float(np.abs(velocity).max()), 1e-9))
     moving = np.zeros_like(position)
     moving[: len(box)] = velocity

@@ -57,6 +57,20 @@ def cantilever_theory(config: dict) -> dict:
     return {"deflection": deflection, "period": 2 * math.pi / omega}
 
 
+def _with_bodies(c: dict, scene, params, state, body, clamped=None):
+    """`add_elastic_bodies` with the scene settings' material (one body model)."""
+    return add_elastic_bodies(
+        scene,
+        params,
+        state,
+        body,
+        youngs_modulus=c["youngs_modulus"],
+        poisson_ratio=c["poisson_ratio"],
+        density=c["solid_density"],
+        clamped=clamped,
+    )
+
+
 def elastic_cantilever(**overrides) -> Case:
     """A beam of `length` and `thickness` (a square section in 3-D) along x,
     clamped at x < 0 by as many particle layers as a wall has, bending under its
@@ -103,16 +117,8 @@ def elastic_cantilever(**overrides) -> Case:
     end = x > length - max(c["end_length"], l0)
     velocity[:, 0] = np.where(end, c["end_velocity"], 0.0)
     state = make_state(scene, position, kind, velocity=velocity)
-    scene, params, state = add_elastic_bodies(
-        scene,
-        params,
-        state,
-        np.zeros(len(position), int),
-        youngs_modulus=c["youngs_modulus"],
-        poisson_ratio=c["poisson_ratio"],
-        density=c["solid_density"],
-        clamped=x < 0,
-    )
+    body = np.zeros(len(position), int)
+    scene, params, state = _with_bodies(c, scene, params, state, body, x < 0)
     tip = tuple(int(i) for i in np.nonzero(x > length - l0)[0])
     names = ("tip_x", "tip_y") if dim == 2 else ("tip_x", "tip_y", "tip_z")
     probes = tuple(
@@ -180,15 +186,8 @@ def elastic_bar(**overrides) -> Case:
     scene = case_scene(c, position, domain, kind)
     params = case_params(c, 2, 1.0)
     state = make_state(scene, position, kind)
-    scene, params, state = add_elastic_bodies(
-        scene,
-        params,
-        state,
-        np.zeros(len(position), int),
-        youngs_modulus=c["youngs_modulus"],
-        poisson_ratio=c["poisson_ratio"],
-        density=c["solid_density"],
-    )
+    body = np.zeros(len(position), int)
+    scene, params, state = _with_bodies(c, scene, params, state, body)
     k = 2 * math.pi / c["wavelength"]
     moved = position.copy()
     moved[:, 1] += c["amplitude"] * np.sin(k * position[:, 1])
@@ -296,16 +295,7 @@ def elastic_plate(**overrides) -> Case:
     scene = case_scene(c, position, domain, kind)
     params = case_params(c, 2, max(velocity_scale(depth, c["gravity"]), 1e-9))
     state = make_state(scene, position, kind)
-    scene, params, state = add_elastic_bodies(
-        scene,
-        params,
-        state,
-        body,
-        youngs_modulus=c["youngs_modulus"],
-        poisson_ratio=c["poisson_ratio"],
-        density=c["solid_density"],
-        clamped=clamped,
-    )
+    scene, params, state = _with_bodies(c, scene, params, state, body, clamped)
     mid = (np.abs(x - 0.5 * span) < 0.6 * l0) & (body == 0)
     mid &= np.abs(position[:, 1] + 0.5 * t) < 0.6 * l0
     particles = tuple(int(i) for i in np.nonzero(mid)[0])
