@@ -94,6 +94,15 @@ class Coupling(eqx.Module):
         return seen, number_density(seen) + own
 
 
+def source_view(
+    coupling: Coupling | None, pairs: Pairs
+) -> tuple[Pairs, Float[Array, " n"]]:
+    """`Coupling.source_view` of `pairs`; the pairs as they are without bodies."""
+    if coupling is None:
+        return pairs, number_density(pairs)
+    return coupling.source_view(pairs)
+
+
 class FluidLoad(eqx.Module):
     """What the fluid exerted on the particles in one step.
 

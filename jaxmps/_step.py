@@ -36,7 +36,7 @@ from jaxtyping import Array, Bool, Float
 
 from . import fluid, neighbours, operators
 from ._checks import check_compatible
-from ._coupling import Coupling
+from ._coupling import Coupling, source_view
 from ._params import Params
 from ._result import Result, StepInfo, update_result
 from ._scene import Scene
@@ -87,7 +87,7 @@ def _step(
     # The density a deformable body's particles have unstrained stands for their
     # own body's pairs (`Coupling.source_view`): the surface and the pressure's
     # source see the body rigid within itself.
-    n_star = _source_view(coupling, pairs)[1]
+    n_star = source_view(coupling, pairs)[1]
     surface = jnp.zeros_like(active)
     if scene.surface is not None:
         with jax.named_scope("surface"):
@@ -157,13 +157,6 @@ def _boundaries(
             scene.discretisation, scene.inflow, params.inflow, params.dt, state
         )
     return state, pool_short
-
-
-def _source_view(coupling: Coupling | None, pairs: operators.Pairs):
-    """`Coupling.source_view` of `pairs`; the pairs as they are without bodies."""
-    if coupling is None:
-        return pairs, operators.number_density(pairs)
-    return coupling.source_view(pairs)
 
 
 def _coupling(scene: Scene, params: Params, state: State) -> Coupling | None:

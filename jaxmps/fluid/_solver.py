@@ -6,11 +6,11 @@ import equinox as eqx
 import jax.numpy as jnp
 from jaxtyping import Array, Bool, Float, Int
 
-from .._coupling import Coupling
+from .._coupling import Coupling, source_view
 from .._params import Params
 from .._types import Field, Kinds, Mask, Scalar, Velocities
 from ..neighbours import Grid
-from ..operators import AbstractLaplacian, Discretisation, Pairs, number_density
+from ..operators import AbstractLaplacian, Discretisation, Pairs
 
 
 class PressureInputs(eqx.Module):
@@ -50,9 +50,7 @@ class PressureInputs(eqx.Module):
     def source_pairs(self, pairs: Pairs) -> tuple[Pairs, Field]:
         """`pairs` and their number density as a source sees them
         (`Coupling.source_view`)."""
-        if self.coupling is None:
-            return pairs, number_density(pairs)
-        return self.coupling.source_view(pairs)
+        return source_view(self.coupling, pairs)
 
 
 class PressureSolution(eqx.Module):
