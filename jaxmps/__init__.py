@@ -3,8 +3,9 @@
 Everyday API, re-exported here:
 
 - building a simulation: `scenes` (built-in cases), `make_scene`, `make_params`,
-  `make_state`, `add_rigid_bodies`, `add_elastic_bodies`, `schemes`
-  (discretisation presets);
+  `make_state`, `add_rigid_bodies`, `add_elastic_bodies`,
+  `add_porous_regions` (with `PorousRegion`), `schemes` (discretisation
+  presets);
 - its three objects: `Scene` (static), `Params` (differentiable), `State` (the
   scan carry), with `Discretisation` and `Kind`;
 - running it: `step`, `simulate` (and `lower_simulate` to time compilation),
@@ -45,6 +46,8 @@ from ._devices import start_processes as start_processes
 from ._driver import RunInterrupted as RunInterrupted
 from ._driver import run as run
 from ._params import Params as Params
+from ._regions import PorousRegion as PorousRegion
+from ._regions import add_porous_regions as add_porous_regions
 from ._result import Result as Result
 from ._result import StepInfo as StepInfo
 from ._scene import Scene as Scene

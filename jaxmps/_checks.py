@@ -35,10 +35,36 @@ def check_compatible(scene: Scene, params: Params, state: State) -> None:
         raise ValueError(
             "Scene.motion and Params.motion must both be set or both be None."
         )
+    _check_porous(scene, params)
     _check_body_models(scene, params, state)
     if scene.time_step is None:
         _check_viscous_limit(scene, params)
     _check_finite(state)
+
+
+def _check_porous(scene: Scene, params: Params) -> None:
+    """Porous regions in the Scene and their coefficients in Params, one per
+    region."""
+    if (scene.porous is None) != (params.porous is None):
+        raise ValueError(
+            "Scene.porous and Params.porous must both be set or both be None; add "
+            "regions with `jaxmps.add_porous_regions`."
+        )
+    if scene.porous is None:
+        return
+    count = scene.porous.count
+    for name in ("kappa", "drag"):
+        got = tuple(getattr(params.porous, name).shape)
+        if got != (count,):
+            raise ValueError(
+                f"Params.porous.{name} has shape {got}; the Scene has {count} porous "
+                f"region(s): give one value per region, shape ({count},)."
+            )
+    if scene.porous.moving and scene.motion is None:
+        raise ValueError(
+            "Scene.porous moves with the walls but the Scene has no prescribed "
+            "motion; build the regions with `jaxmps.add_porous_regions`."
+        )
 
 
 def _check_body_models(scene: Scene, params: Params, state: State) -> None:

@@ -23,6 +23,8 @@ VALUE_RULES = {
     "rigid.gyration": "positive",
     "elastic.youngs_modulus": "positive",
     "elastic.density": "positive",
+    "porous.kappa": "positive",
+    "porous.drag": ">= 0",
 }
 
 
@@ -149,6 +151,24 @@ class ElasticParams(eqx.Module):
         _check_fields(self, "elastic.", "", nested=False)
 
 
+class PorousParams(eqx.Module):
+    """Per-region coefficients of the porous damping regions (differentiable; see
+    `jaxmps.fluid.PorousRegions`).
+
+    Attributes:
+        kappa: each region's permeability coefficient kappa [s]: the linear
+            resistance -u/kappa, shape (r,). Calibrate it on a log scale.
+        drag: each region's quadratic drag coefficient c [1/m] (the resistance
+            -c |u| u; 0 for none), shape (r,).
+    """
+
+    kappa: Float[Array, " r"] = eqx.field(converter=jnp.asarray)
+    drag: Float[Array, " r"] = eqx.field(converter=jnp.asarray)
+
+    def __check_init__(self):
+        _check_fields(self, "porous.", "", nested=False)
+
+
 class Params(eqx.Module):
     """Physical coefficients. Float arrays only: changing a value never recompiles.
 
@@ -167,6 +187,8 @@ class Params(eqx.Module):
             Scene has rigid bodies.
         elastic: per-body Young's modulus, Poisson's ratio and density, present
             exactly when the Scene has elastic bodies.
+        porous: per-region coefficients of the porous damping regions, present
+            exactly when the Scene has them.
     """
 
     density: Float[Array, ""] = eqx.field(converter=jnp.asarray)
@@ -179,6 +201,7 @@ class Params(eqx.Module):
     motion: HarmonicParams | StrokeParams | None = None
     rigid: RigidParams | None = None
     elastic: ElasticParams | None = None
+    porous: PorousParams | None = None
 
     def __check_init__(self):
         # Only concrete values can be checked; traced values pass through.

@@ -13,6 +13,7 @@ from .fluid import (
     FreeSurface,
     Inflow,
     Outflow,
+    PorousRegions,
     PrescribedMotion,
 )
 from .neighbours import Grid
@@ -59,6 +60,8 @@ class Scene(eqx.Module):
         motion: optional prescribed motion of wall particles (piston, shaken tank).
         rigid: optional rigid bodies (with contact and friction).
         elastic: optional elastic bodies.
+        porous: optional porous damping regions (a resistance on the fluid
+            velocity in boxes, `jaxmps.add_porous_regions`).
         escape_limit: how many fluid particles may leave the domain box (spray
             over an open tank) and be taken out of the run, counted in
             `State.escaped`, before the run ends with `Result.left_domain`; 0
@@ -95,6 +98,7 @@ class Scene(eqx.Module):
     motion: PrescribedMotion | None = None
     rigid: RigidBodies | None = None
     elastic: ElasticBodies | None = None
+    porous: PorousRegions | None = None
     time_step: Adaptive | None = None
     escape_limit: int = 0
 

@@ -6,6 +6,8 @@
     coupling     what the body models impose on the fluid   <model>.coupling
     neighbours   lists at r^k (carried, or searched)        neighbours.search
     predict      u* = u^k + dt (nu lap u + g)               fluid.predict
+    porous       resistance in porous damping regions,      fluid.damp
+                 on u^k, added to u*
     collide      collision guard on u*                      Scene.collision
     advect       r* = r^k + dt u*                           fluid.advect
     <name>       a body model's internal forces in u*, r*   <model>.predict
@@ -70,6 +72,9 @@ def _step(
         )
     with jax.named_scope("predict"):
         u_star = fluid.predict(disc, scene.laplacian, params, state, pairs_k, coupling)
+    if scene.porous is not None:
+        with jax.named_scope("porous"):
+            u_star = u_star + _porous(scene, params, state) - state.velocity
     u_forced = u_star
     if scene.collision is not None:
         with jax.named_scope("collide"):
@@ -157,6 +162,35 @@ def _boundaries(
             scene.discretisation, scene.inflow, params.inflow, params.dt, state
         )
     return state, pool_short
+
+
+def _porous(scene: Scene, params: Params, state: State) -> Velocities:
+    """u^k after the porous regions' resistance over the step, on the particles in
+    them at r^k; regions fixed to shaken walls move with them and damp the
+    velocity relative to theirs."""
+    dim, dtype = scene.dim, state.position.dtype
+    shift = jnp.zeros((dim,), dtype)
+    frame_velocity = jnp.zeros((dim,), dtype)
+    if scene.porous.moving:
+        motion, dt = scene.motion, params.dt
+        axis = jnp.asarray(motion.axis, dtype)
+        now = motion.law.displacement(params.motion, state.time)
+        later = motion.law.displacement(params.motion, state.time + dt)
+        start = motion.law.displacement(params.motion, jnp.zeros_like(state.time))
+        shift = (now - start) * axis
+        frame_velocity = (later - now) / dt * axis
+    return fluid.damp(
+        scene.porous,
+        params.porous.kappa,
+        params.porous.drag,
+        params.dt,
+        shift,
+        frame_velocity,
+        state.position,
+        state.velocity,
+        state.kind,
+        state.active,
+    )
 
 
 def _coupling(scene: Scene, params: Params, state: State) -> Coupling | None:

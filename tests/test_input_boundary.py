@@ -61,12 +61,12 @@ def test_gravity_zero_runs_with_a_given_dt():
 
 def test_every_scene_setting_has_a_rule_or_is_a_word():
     """The table covers every numeric setting of every scene (a new setting must be
-    given its range)."""
-    from jaxmps.scenes._common import RULES
+    given its range); a box or a list of regions is checked where it is read."""
+    from jaxmps.scenes._common import RULES, STRUCTURED
 
     for scene, defaults in jaxmps.scenes.available().items():
         for name, default in defaults.items():
-            if isinstance(default, (bool, str)) or name == "dim":
+            if isinstance(default, (bool, str)) or name in ("dim", *STRUCTURED):
                 continue
             assert name in RULES, f"{scene}: setting {name!r} has no rule"
 

@@ -1,7 +1,7 @@
 """Fluid stages of a step and the two pressure stages (semi-implicit, explicit).
 
 The step (`jaxmps.step`) runs them in order: `predict` (viscosity, gravity), the
-`CollisionGuard`, `advect` to r*, `detect_surface`, the pressure stage (a
+porous damping (`damp`), the `CollisionGuard`, `advect` to r*, `detect_surface`, the pressure stage (a
 `SemiImplicit` Poisson solve or the `Explicit` equation of state),
 `pressure_force`, `accelerate` and the `DynamicStabilisation`; wall motion, inflow
 and outflow act on the boundaries around them.
@@ -9,6 +9,7 @@ and outflow act on the boundaries around them.
 
 from .._params import HarmonicParams as HarmonicParams
 from .._params import InflowParams as InflowParams
+from .._params import PorousParams as PorousParams
 from .._params import StrokeParams as StrokeParams
 from ._cg import SolveInfo as SolveInfo
 from ._cg import solve_spd as solve_spd
@@ -25,6 +26,11 @@ from ._open import Inflow as Inflow
 from ._open import Outflow as Outflow
 from ._open import apply_inflow as apply_inflow
 from ._open import apply_outflow as apply_outflow
+from ._porous import DIRECTIONS as DIRECTIONS
+from ._porous import PorousRegions as PorousRegions
+from ._porous import damp as damp
+from ._porous import direction_axis as direction_axis
+from ._porous import resistance_factor as resistance_factor
 from ._precondition import AbstractPreconditioner as AbstractPreconditioner
 from ._precondition import Jacobi as Jacobi
 from ._precondition import Multigrid as Multigrid

@@ -36,7 +36,9 @@ def _check_size(counts: np.ndarray, spacing: float) -> None:
     """Refuse a lattice too large to run, before allocating it (ValueError naming
     the count, the memory and `spacing`)."""
     dim = len(counts)
-    total = math.prod(int(c) for c in counts)
+    # As a float (inf beyond its range): a tiny spacing gives counts whose product
+    # no float holds.
+    total = math.prod(float(c) for c in counts)
     limit = particle_limit(dim)
     if total > limit:
         per = BYTES_PER_PARTICLE.get(dim, BYTES_PER_PARTICLE[3])

@@ -4,28 +4,29 @@ from ._bodies import BLOCK_IMPACT as _BLOCK_IMPACT
 from ._bodies import DAM_BREAK_BOX as _DAM_BREAK_BOX
 from ._bodies import FLOATING_BOX as _FLOATING_BOX
 from ._bodies import FRICTION_TILT as _FRICTION_TILT
-from ._bodies import block_impact as block_impact
-from ._bodies import dam_break_box as dam_break_box
-from ._bodies import floating_box as floating_box
-from ._bodies import friction_tilt as friction_tilt
+from ._bodies import block_impact as _block_impact
+from ._bodies import dam_break_box as _dam_break_box
+from ._bodies import floating_box as _floating_box
+from ._bodies import friction_tilt as _friction_tilt
 from ._case import Case as Case
 from ._common import COMMON
+from ._porous import accepts_porous
 from ._dam_break import DEFAULTS as _DAM_BREAK
-from ._dam_break import dam_break as dam_break
+from ._dam_break import dam_break as _dam_break
 from ._elastic import ELASTIC_BAR as _ELASTIC_BAR
 from ._elastic import ELASTIC_CANTILEVER as _ELASTIC_CANTILEVER
 from ._elastic import ELASTIC_PLATE as _ELASTIC_PLATE
 from ._elastic import bar_theory as bar_theory
 from ._elastic import cantilever_theory as cantilever_theory
-from ._elastic import elastic_bar as elastic_bar
-from ._elastic import elastic_cantilever as elastic_cantilever
-from ._elastic import elastic_plate as elastic_plate
+from ._elastic import elastic_bar as _elastic_bar
+from ._elastic import elastic_cantilever as _elastic_cantilever
+from ._elastic import elastic_plate as _elastic_plate
 from ._elastic import oscillation_mean as oscillation_mean
 from ._elastic import plate_theory as plate_theory
 from ._flume import DEFAULTS as _FLUME
-from ._flume import flume as flume
+from ._flume import flume as _flume
 from ._hydrostatic import DEFAULTS as _HYDROSTATIC
-from ._hydrostatic import hydrostatic as hydrostatic
+from ._hydrostatic import hydrostatic as _hydrostatic
 from ._hydrostatic import hydrostatic_pressure as hydrostatic_pressure
 from ._probes import AbstractProbe as AbstractProbe
 from ._probes import BodyValue as BodyValue
@@ -46,11 +47,26 @@ from ._probes import observe_probes as observe_probes
 from ._sloshing import SLOSHING_TANK as _SLOSHING_TANK
 from ._sloshing import STANDING_WAVE as _STANDING_WAVE
 from ._sloshing import natural_frequency as natural_frequency
-from ._sloshing import sloshing_tank as sloshing_tank
-from ._sloshing import standing_wave as standing_wave
+from ._sloshing import sloshing_tank as _sloshing_tank
+from ._sloshing import standing_wave as _standing_wave
 from ._sloshing import standing_wave_period as standing_wave_period
 from ._wave_tank import DEFAULTS as _WAVE_TANK
-from ._wave_tank import wave_tank as wave_tank
+from ._wave_tank import wave_tank as _wave_tank
+
+# Every scene takes the porous-region settings (`_porous.SETTINGS`) as well.
+block_impact = accepts_porous(_block_impact)
+dam_break = accepts_porous(_dam_break)
+dam_break_box = accepts_porous(_dam_break_box)
+elastic_bar = accepts_porous(_elastic_bar)
+elastic_cantilever = accepts_porous(_elastic_cantilever)
+elastic_plate = accepts_porous(_elastic_plate)
+floating_box = accepts_porous(_floating_box)
+flume = accepts_porous(_flume)
+friction_tilt = accepts_porous(_friction_tilt)
+hydrostatic = accepts_porous(_hydrostatic)
+sloshing_tank = accepts_porous(_sloshing_tank)
+standing_wave = accepts_porous(_standing_wave)
+wave_tank = accepts_porous(_wave_tank)
 
 _REGISTRY = {
     "block_impact": (block_impact, _BLOCK_IMPACT),

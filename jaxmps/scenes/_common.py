@@ -52,6 +52,12 @@ COMMON = {
     "courant": Adaptive.courant,
     "domain_margin": None,
     "escape_limit": None,
+    # porous damping regions (`_porous.accepts_porous`)
+    "porous_kappa": None,
+    "porous_box": None,
+    "porous_direction": "vertical",
+    "porous_drag": 0.0,
+    "porous_regions": None,
 }
 
 
@@ -248,7 +254,12 @@ RULES = {
     "solid_density": _POSITIVE,
     "tip_velocity": _FINITE,
     "end_velocity": _FINITE,
+    "porous_kappa": _POSITIVE,
+    "porous_drag": _NON_NEGATIVE,
 }
+# Settings that are not one number: checked where they are read
+# (`_porous.accepts_porous`, `jaxmps.add_porous_regions`).
+STRUCTURED = ("porous_box", "porous_regions")
 
 
 def _check_range(scene: str, key: str, value: Any) -> None:

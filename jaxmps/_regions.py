@@ -1,0 +1,197 @@
+"""Host-side construction of porous damping regions (validates its inputs)."""
+
+import dataclasses
+import math
+from collections.abc import Sequence
+from typing import Any
+
+import equinox as eqx
+import numpy as np
+
+from ._params import Params, PorousParams
+from ._scene import Scene
+from ._state import State
+from ._types import Kind
+from .fluid import PorousRegions, direction_axis
+
+
+@dataclasses.dataclass(frozen=True)
+class PorousRegion:
+    """One porous damping region, as given to `add_porous_regions`.
+
+    Attributes:
+        box: (lower, upper) corners [m], d numbers each, in the frame of the walls
+            at the start of the run; the part inside the domain acts.
+        kappa: permeability coefficient [s]: the resistance -u/kappa on the damped
+            component (the `porous_kappa` setting of the built-in scenes).
+        direction: the damped component: "x", "y", "z", "vertical" (the last
+            axis: through horizontal plates) or "all" (`porous_direction`).
+        drag: quadratic drag coefficient [1/m], the resistance -drag |u| u
+            (`porous_drag`; 0: none).
+    """
+
+    # Any: numbers of any kind (checked by `add_porous_regions`, which names the
+    # setting a bad one came from).
+    box: Any
+    kappa: Any
+    direction: str = "vertical"
+    drag: Any = 0.0
+
+    @classmethod
+    def of(cls, value) -> "PorousRegion":
+        """A region from a `PorousRegion` or a dict of its fields (as a run file's
+        config stores it)."""
+        if isinstance(value, PorousRegion):
+            return value
+        if isinstance(value, dict):
+            unknown = sorted(set(value) - {f.name for f in dataclasses.fields(cls)})
+            if unknown:
+                raise ValueError(
+                    f"porous_regions: unknown field(s) {unknown}; a region has box, "
+                    "kappa, direction, drag."
+                )
+            return cls(**value)
+        raise ValueError(
+            f"porous_regions: expected PorousRegion or dict entries, got "
+            f"{type(value).__name__}."
+        )
+
+    def as_dict(self) -> dict:
+        lower, upper = self.box
+        return dict(
+            box=[[float(v) for v in lower], [float(v) for v in upper]],
+            kappa=float(self.kappa),
+            direction=self.direction,
+            drag=float(self.drag),
+        )
+
+
+def add_porous_regions(
+    scene: Scene, params: Params, state: State, regions: Sequence[PorousRegion]
+) -> tuple[Scene, Params]:
+    """Add porous damping regions (seed 001 eq. 5.1) to a built case: inside each
+    box the fluid velocity along the region's direction meets the resistance
+    -u/kappa - drag |u| u, added to the predictor and integrated backward over the
+    step (`jaxmps.fluid.PorousRegions`). Each region's kappa and drag become
+    `Params.porous` entries (differentiable: calibrate "porous.kappa" on a log
+    scale).
+
+    In a scene whose prescribed motion moves every wall (a shaken tank) the regions
+    move with the walls and damp the velocity relative to them; otherwise they
+    are fixed in space.
+
+    Refused (ValueError naming the setting): an empty list, a box that is not d
+    finite lower and upper numbers with lower < upper, a box entirely outside the
+    domain or with no fluid particle in it at the start, kappa not positive and
+    finite, drag negative or not finite, an unknown direction.
+
+    Returns:
+        The Scene with `porous` and the Params with `porous` (the State is
+        unchanged).
+    """
+    regions = [PorousRegion.of(r) for r in regions]
+    if not regions:
+        raise ValueError("add_porous_regions needs at least one region.")
+    if scene.porous is not None:
+        raise ValueError(
+            "The Scene has porous regions already; give all regions in one "
+            "`add_porous_regions` call."
+        )
+    dim = scene.dim
+    origin = np.asarray(scene.grid.origin, float)
+    far = origin + np.asarray(scene.grid.shape) * scene.grid.cell_size
+    position = np.asarray(state.position)
+    fluid = np.asarray(state.active) & (np.asarray(state.kind) == int(Kind.FLUID))
+    lowers, uppers, axes = [], [], []
+    for region in regions:
+        lower, upper = _box(region.box, dim)
+        if np.any(upper <= origin) or np.any(lower >= far):
+            raise ValueError(
+                f"porous_box {_shown(lower, upper)} lies entirely outside the domain "
+                f"{_shown(origin, far)}; move it over the fluid."
+            )
+        inside = fluid & np.all((position >= lower) & (position < upper), axis=1)
+        if not np.any(inside):
+            raise ValueError(
+                f"porous_box {_shown(lower, upper)} holds no fluid particle at the "
+                "start; a region acts on fluid only: move or enlarge the box."
+            )
+        _check_coefficients(region)
+        lowers.append(tuple(float(v) for v in lower))
+        uppers.append(tuple(float(v) for v in upper))
+        axes.append(direction_axis(region.direction, dim))
+    component = PorousRegions(
+        lower=tuple(lowers),
+        upper=tuple(uppers),
+        axes=tuple(axes),
+        moving=_moves_every_wall(scene, state),
+    )
+    dtype = params.dt.dtype
+    coefficients = PorousParams(
+        kappa=np.asarray([r.kappa for r in regions], dtype),
+        drag=np.asarray([r.drag for r in regions], dtype),
+    )
+    scene = eqx.tree_at(lambda s: s.porous, scene, component, is_leaf=_none)
+    params = eqx.tree_at(lambda p: p.porous, params, coefficients, is_leaf=_none)
+    return scene, params
+
+
+def _none(x) -> bool:
+    return x is None
+
+
+def _box(box, dim: int) -> tuple[np.ndarray, np.ndarray]:
+    """The (lower, upper) corners of a `porous_box`, checked."""
+    try:
+        lower, upper = (np.asarray(corner, float).reshape(-1) for corner in box)
+    except (TypeError, ValueError):
+        raise ValueError(
+            f"porous_box must be (lower, upper) corners of {dim} numbers each "
+            f"(on the command line {2 * dim} comma-separated numbers), got {box!r}."
+        ) from None
+    if lower.shape != (dim,) or upper.shape != (dim,):
+        raise ValueError(
+            f"porous_box needs {dim} numbers per corner in a {dim}-D scene "
+            f"(x0,y0{',z0' if dim == 3 else ''},x1,y1{',z1' if dim == 3 else ''}), "
+            f"got {box!r}."
+        )
+    if not (np.all(np.isfinite(lower)) and np.all(np.isfinite(upper))):
+        raise ValueError(f"porous_box must be finite, got {box!r}.")
+    if np.any(lower >= upper):
+        raise ValueError(
+            f"porous_box {_shown(lower, upper)}: each lower corner value must lie "
+            "below the upper one."
+        )
+    return lower, upper
+
+
+def _check_coefficients(region: PorousRegion) -> None:
+    kappa, drag = region.kappa, region.drag
+    if not (_number(kappa) and math.isfinite(kappa) and kappa > 0):
+        raise ValueError(
+            f"porous_kappa must be positive and finite (seconds), got {kappa!r}."
+        )
+    if not (_number(drag) and math.isfinite(drag) and drag >= 0):
+        raise ValueError(f"porous_drag must be finite and >= 0 (1/m), got {drag!r}.")
+
+
+def _number(value) -> bool:
+    try:
+        float(value)
+    except (TypeError, ValueError):
+        return False
+    return not isinstance(value, (bool, np.bool_, str))
+
+
+def _shown(lower, upper) -> str:
+    return f"[{', '.join(f'{v:g}' for v in lower)}] - [{', '.join(f'{v:g}' for v in upper)}]"
+
+
+def _moves_every_wall(scene: Scene, state: State) -> bool:
+    """Whether the Scene's prescribed motion moves every wall and dummy particle
+    (a shaken tank), so that regions fixed to the walls move with it."""
+    if scene.motion is None:
+        return False
+    kind = np.asarray(state.kind)
+    walls = np.nonzero((kind == int(Kind.WALL)) | (kind == int(Kind.DUMMY)))[0]
+    return bool(np.all(np.isin(walls, np.asarray(scene.motion.particles))))
