@@ -184,7 +184,10 @@ def _number(value) -> bool:
 
 
 def _shown(lower, upper) -> str:
-    return f"[{', '.join(f'{v:g}' for v in lower)}] - [{', '.join(f'{v:g}' for v in upper)}]"
+    def corner(values) -> str:
+        return "[" + ", ".join(f"{v:g}" for v in values) + "]"
+
+    return f"{corner(lower)} - {corner(upper)}"
 
 
 def _moves_every_wall(scene: Scene, state: State) -> bool:

@@ -7,11 +7,11 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from test_pipeline import _scopes
 
 import jaxmps
 from jaxmps import PorousRegion, fluid, scenes
 from jaxmps.geometry import block
-from test_pipeline import _scopes
 
 
 def _free_block(velocity, l0=0.01, solver=None):

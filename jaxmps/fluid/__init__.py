@@ -1,8 +1,8 @@
 """Fluid stages of a step and the two pressure stages (semi-implicit, explicit).
 
 The step (`jaxmps.step`) runs them in order: `predict` (viscosity, gravity), the
-porous damping (`damp`), the `CollisionGuard`, `advect` to r*, `detect_surface`, the pressure stage (a
-`SemiImplicit` Poisson solve or the `Explicit` equation of state),
+porous damping (`damp`), the `CollisionGuard`, `advect` to r*, `detect_surface`,
+the pressure stage (a `SemiImplicit` Poisson solve or the `Explicit` equation of state),
 `pressure_force`, `accelerate` and the `DynamicStabilisation`; wall motion, inflow
 and outflow act on the boundaries around them.
 """

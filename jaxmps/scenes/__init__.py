@@ -10,7 +10,6 @@ from ._bodies import floating_box as _floating_box
 from ._bodies import friction_tilt as _friction_tilt
 from ._case import Case as Case
 from ._common import COMMON
-from ._porous import accepts_porous
 from ._dam_break import DEFAULTS as _DAM_BREAK
 from ._dam_break import dam_break as _dam_break
 from ._elastic import ELASTIC_BAR as _ELASTIC_BAR
@@ -28,6 +27,7 @@ from ._flume import flume as _flume
 from ._hydrostatic import DEFAULTS as _HYDROSTATIC
 from ._hydrostatic import hydrostatic as _hydrostatic
 from ._hydrostatic import hydrostatic_pressure as hydrostatic_pressure
+from ._porous import accepts_porous
 from ._probes import AbstractProbe as AbstractProbe
 from ._probes import BodyValue as BodyValue
 from ._probes import DisplacedDepth as DisplacedDepth
