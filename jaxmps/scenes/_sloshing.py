@@ -141,6 +141,7 @@ SLOSHING_TANK = {
     "settle": 2.0,
     "slope": 0.0,  # 0: rectangular; else horizontal run per unit rise
     "bottom_width": 0.3,
+    "slope_wall": "staircase",
     "gravity": 9.8,
     "spacing": 0.01,
     "dim": 2,
@@ -156,14 +157,17 @@ def sloshing_tank(**overrides) -> Case:
     linear resonances 1.2204 and 2.1631 Hz, see `natural_frequency`). With `slope`
     > 0 (e.g. 1.5, seed 001 §3.3.2): a vertical left wall, a flat bottom of
     `bottom_width` and a right wall rising 1 : `slope`, `depth` 0.5 m is the
-    Tomita (2016) tank; its slope wall is a lattice staircase (wall particles
-    within l0 of the slope, dummies behind, measured normal to it).
+    Tomita (2016) tank; its slope wall is a lattice staircase
+    (`slope_wall="staircase"`) or, as in seed 001, a diagonal row of wall
+    particles with dummies stacked vertically (`"type1"`) or normal to the slope
+    (`"type2"`); see `_sloped_tank`.
 
     Probes: `eta_left` and `eta_right` (strip-volume elevation over 3 l0 next to
     each wall, following the tank); rectangular tank: `mode1`, `mode2` (amplitude
     of the surface modes cos(k x), k = pi/L and 3 pi/L, that the shaking
-    excites; see `ModeAmplitude`); sloped tank: `run_up` (highest fluid within
-    1.5 l0 of the slope, above still water).
+    excites; see `ModeAmplitude`); sloped tank: `run_up` (the seed's run-up R:
+    highest fluid within 1.5 l0 of the slope, above still water; `eta_left` is its
+    side-wall height H).
     """
     specific = dict(SLOSHING_TANK)
     if overrides.get("slope"):
@@ -210,6 +214,12 @@ def sloshing_tank(**overrides) -> Case:
         s, base = float(c["slope"]), whole(c["bottom_width"], l0)
         if not s > 0:
             raise ValueError("slope must be positive (horizontal run per unit rise).")
+        if c["slope_wall"] not in ("staircase", "type1", "type2"):
+            raise ValueError(
+                f"slope_wall={c['slope_wall']!r} is not a slope wall; valid: "
+                "staircase (lattice), type1 (diagonal, dummies stacked "
+                "vertically), type2 (diagonal, dummies normal to the slope)."
+            )
         length = whole(base + s * height, l0)
         fluid, walls, wall_kind = _sloped_tank(c, base, s, length, height, depth)
         scene, params, state = _assemble(
@@ -234,21 +244,47 @@ def _nearest(points, target) -> int:
 
 def _sloped_tank(c: dict, base: float, s: float, length: float, height, depth):
     """Water, walls and wall kinds of the sloped tank: a vertical left wall, a flat
-    bottom of `base`, and a right wall rising 1 : `s` built as a lattice staircase
-    (wall particles within l0 of the slope, dummies behind, measured normal to
-    it)."""
+    bottom of `base`, and a right wall rising 1 : `s`, by the `slope_wall`
+    setting:
+
+    - "staircase": lattice particles within l0 below the slope are its wall
+      particles, those within the boundary's depth behind them its dummies;
+    - "type1", "type2" (seed 001 §3.3.2, Fig. 3.10): wall particles in point
+      contact along a line 0.5 l0 below the slope, with dummies stacked
+      vertically under each ("type1", as under the bottom: a denser wall that
+      pushes harder but wedges no fluid) or normal to the slope ("type2": the
+      other walls' number density).
+    """
     l0 = c["spacing"]
     layers = boundary_layers(c)
     walls, wall_kind = _open_tank(c, length, height)
     keep = walls[:, 0] < base  # left wall and the bed under the flat bottom
     walls, wall_kind = walls[keep], wall_kind[keep]
-    grid = geometry.block([base - 2 * layers * l0, -layers * l0], [length, height], l0)
-    rise = (grid[:, 0] - base) / s  # slope surface height above the bed
-    dist = (rise - grid[:, 1]) / math.sqrt(1 + 1 / s**2)
-    slab = (dist > 0) & (dist < layers * l0) & (grid[:, 0] >= base)
-    slab |= (grid[:, 1] < 0) & (grid[:, 0] >= base) & (dist < layers * l0)
-    slope_kind = np.where(dist[slab] < l0, Kind.WALL, Kind.DUMMY)
-    walls = np.concatenate([walls, grid[slab]])
+    if c["slope_wall"] == "staircase":
+        grid = geometry.block(
+            [base - 2 * layers * l0, -layers * l0], [length, height], l0
+        )
+        rise = (grid[:, 0] - base) / s  # slope surface height above the bed
+        dist = (rise - grid[:, 1]) / math.sqrt(1 + 1 / s**2)
+        slab = (dist > 0) & (dist < layers * l0) & (grid[:, 0] >= base)
+        slab |= (grid[:, 1] < 0) & (grid[:, 0] >= base) & (dist < layers * l0)
+        slope_walls = grid[slab]
+        slope_kind = np.where(dist[slab] < l0, Kind.WALL, Kind.DUMMY)
+    else:
+        norm = math.sqrt(1 + s * s)
+        along = np.array([s, 1.0]) / norm
+        into = np.array([1.0, -s]) / norm  # normal, into the wall
+        count = int((height + l0) * norm / l0) + 1
+        line = np.array([base, 0.0]) + 0.5 * l0 * into
+        line = line + l0 * np.arange(count)[:, None] * along
+        behind = into if c["slope_wall"] == "type2" else np.array([0.0, -1.0])
+        steps = l0 * np.arange(1, layers)[:, None, None] * behind
+        dummies = (line[None] + steps).reshape(-1, 2)
+        slope_walls = np.concatenate([line, dummies])
+        slope_kind = np.concatenate(
+            [np.full(len(line), Kind.WALL), np.full(len(dummies), Kind.DUMMY)]
+        )
+    walls = np.concatenate([walls, slope_walls])
     wall_kind = np.concatenate([wall_kind, slope_kind]).astype(np.int32)
     fluid = geometry.block([0.0, 0.0], [length, depth], l0)
     above = fluid[:, 1] > (fluid[:, 0] - base) / s + 0.5 * l0
