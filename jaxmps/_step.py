@@ -72,9 +72,7 @@ def _step(
         )
     with jax.named_scope("predict"):
         u_star = fluid.predict(disc, scene.laplacian, params, state, pairs_k, coupling)
-    if scene.porous is not None:
-        with jax.named_scope("porous"):
-            u_star = u_star + _porous(scene, params, state) - state.velocity
+    u_star = _with_porous(scene, params, state, u_star)
     u_forced = u_star
     if scene.collision is not None:
         with jax.named_scope("collide"):
@@ -162,6 +160,17 @@ def _boundaries(
             scene.discretisation, scene.inflow, params.inflow, params.dt, state
         )
     return state, pool_short
+
+
+def _with_porous(
+    scene: Scene, params: Params, state: State, u_star: Velocities
+) -> Velocities:
+    """u* with the porous regions' resistance on u^k (`_porous`), in the stage
+    `porous`; unchanged in a scene without regions."""
+    if scene.porous is None:
+        return u_star
+    with jax.named_scope("porous"):
+        return u_star + _porous(scene, params, state) - state.velocity
 
 
 def _porous(scene: Scene, params: Params, state: State) -> Velocities:

@@ -1,0 +1,114 @@
+"""Cost of porous damping regions as a fraction of step time.
+
+The same case is run with and without its regions: the sloped Tomita tank with
+the seed's region of three porous plates (one box), a rectangular sloshing tank
+with one, four and sixteen regions, and a 3-D hydrostatic tank with one. Compile
+time and run time are reported separately; run times are the best of three
+calls after an untimed one (`_common.time_compiled`), fixed steps.
+
+Run: python benchmarks/porous_cost.py  (writes results/porous_cost_cpu.{json,md})
+"""
+
+import json
+import pathlib
+
+from _common import compile_and_run, fixed_steps, loadavg, machine_info
+
+import jaxmps
+from jaxmps import PorousRegion
+
+HERE = pathlib.Path(__file__).parent
+
+
+def strips(count):
+    """`count` vertical-damping boxes side by side under the surface of the
+    0.5 m x 0.3 m tank."""
+    width = 0.5 / count
+    return [
+        PorousRegion(((i * width, 0.15), ((i + 1) * width, 0.3)), 0.05)
+        for i in range(count)
+    ]
+
+
+def main():
+    seed_box = dict(porous_kappa=0.01, porous_box="-1,0.38,0.3,0.46")
+    cases = {
+        "sloped tank, seed's region": (
+            dict(slope=1.5, spacing=0.01),
+            seed_box,
+            jaxmps.scenes.sloshing_tank,
+        ),
+        **{
+            f"sloshing tank, {k} region(s)": (
+                dict(spacing=0.01),
+                dict(porous_regions=strips(k)),
+                jaxmps.scenes.sloshing_tank,
+            )
+            for k in (1, 4, 16)
+        },
+        "3-D hydrostatic, 1 region": (
+            dict(dim=3, spacing=0.02),
+            dict(porous_kappa=0.05, porous_box="-1,-1,0.1,2,2,0.3"),
+            jaxmps.scenes.hydrostatic,
+        ),
+    }
+    n_steps = 200
+    rows = []
+    for name, (settings, regions, build) in cases.items():
+        plain = fixed_steps(build(**settings))
+        damped = fixed_steps(build(**settings, **regions))
+        n = int(plain.state.active.sum())
+        c_with, r_with = compile_and_run(
+            damped.scene, damped.params, damped.state, n_steps
+        )
+        c_without, r_without = compile_and_run(
+            plain.scene, plain.params, plain.state, n_steps
+        )
+        rows.append(
+            dict(
+                case=name,
+                particles=n,
+                regions=damped.scene.porous.count,
+                steps=n_steps,
+                compile_with_s=c_with,
+                compile_without_s=c_without,
+                run_with_s=r_with,
+                run_without_s=r_without,
+                share_of_step=(r_with - r_without) / r_with,
+                particle_steps_per_s=n * n_steps / r_with,
+            )
+        )
+        print(rows[-1], flush=True)
+    info = machine_info()
+    info["loadavg_1min_end"] = loadavg()
+    out = HERE / "results" / "porous_cost_cpu.json"
+    out.write_text(json.dumps(dict(machine=info, rows=rows), indent=2))
+    lines = [
+        "# Porous damping regions: cost as a fraction of step time (CPU)",
+        "",
+        f"{info['cpu_model']}, {info['cpu_usable']} cores, jax {info['jax']}, "
+        f"{info['dtype']}; {n_steps} fixed steps, run time best of 3 after a "
+        "warm-up call.",
+        "",
+        "| case | particles | regions | compile with / without [s] | "
+        "run with / without [s] | region share of step | particle-steps/s |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for r in rows:
+        lines.append(
+            f"| {r['case']} | {r['particles']} | {r['regions']} | "
+            f"{r['compile_with_s']:.1f} / {r['compile_without_s']:.1f} | "
+            f"{r['run_with_s']:.3f} / {r['run_without_s']:.3f} | "
+            f"{100 * r['share_of_step']:.1f} % | {r['particle_steps_per_s']:.3g} |"
+        )
+    lines += [
+        "",
+        "A scene without regions compiles no region code (no `porous` stage in its "
+        "program; tests/test_porous.py). Shares within a few per cent of zero are "
+        "load noise: compare the rows' spread.",
+    ]
+    (HERE / "results" / "porous_cost_cpu.md").write_text("\n".join(lines) + "\n")
+
+
+if __name__ == "__main__":
+    main()
