@@ -71,11 +71,15 @@ def main(argv=None):
     start = time.perf_counter()
     out = jaxmps.sweep(case, {"motion.frequency": freqs}, times=times)
     wall = time.perf_counter() - start
+    name = f"tomita_sweep_{args.slope_wall}_{round(1000 * args.spacing)}mm"
+    if args.porous_kappa is not None:
+        name += f"_kappa{args.porous_kappa:g}"
+    out.save(HERE / "results" / f"{name}_cpu.h5")  # every series, before any summary
     t = np.asarray(out.saved["time"])[0]
     shaking = t > 2.0
     run_up = np.asarray(out.saved["run_up"])[:, shaking].max(axis=1)
     height = np.asarray(out.saved["eta_left"])[:, shaking].max(axis=1)
-    results = [str(jaxmps.Result(int(r))) for r in np.asarray(out.result)]
+    results = out.messages()
     record = dict(
         settings=settings,
         particles=int(case.state.active.sum()),
@@ -86,7 +90,6 @@ def main(argv=None):
         measured_run_up=[row[1] for row in TABLE4],
         measured_side_wall=[row[2] for row in TABLE4],
         results=results,
-        steps=np.asarray(out.steps.accepted).sum(axis=-1).tolist(),
         machine=machine_info(),
     )
     first = freqs < 0.85
@@ -95,9 +98,6 @@ def main(argv=None):
     second = freqs > 0.85
     record["second_resonance_R"] = float(freqs[second][np.argmax(run_up[second])])
     record["second_resonance_H"] = float(freqs[second][np.argmax(height[second])])
-    name = f"tomita_sweep_{args.slope_wall}_{round(1000 * args.spacing)}mm"
-    if args.porous_kappa is not None:
-        name += f"_kappa{args.porous_kappa:g}"
     (HERE / "results" / f"{name}_cpu.json").write_text(json.dumps(record, indent=1))
     lines = [
         f"# Tomita sloped tank sweep: slope wall {args.slope_wall}, "
