@@ -10,11 +10,16 @@ import pytest
 import jaxmps
 
 
-def _draft_error(case, settle=1.5, window=1.0, saves=40):
+def _draft_error(case, settle=1.5, window=3.0, saves=120):
     """Time-mean displaced depth minus Archimedes' (density ratio x box height), in
     units of l0, over `window` seconds after `settle` seconds: the `displaced`
     probe, which counts the water the box displaces by mass (far columns minus the
-    columns under the box), whatever level its free surface is taken at."""
+    columns under the box), whatever level its free surface is taken at.
+
+    The probe swings by +-0.4 l0 with the tank's sloshing: at B/10, ratio 0.6, the
+    means of successive 1 s windows were -0.02, -0.23 and -0.09 l0 on one host
+    (the mean over 3.5 s -0.10), and a 1 s window read -0.16 on one host and -0.30
+    on another; 3 s averages over several sloshing periods."""
     c = case.config
     dt = float(case.params.dt)
     first = jaxmps.simulate(
@@ -52,8 +57,9 @@ def test_displaced_depth_probe_counts_archimedes_on_the_lattice():
 @pytest.mark.parametrize("ratio", [0.3, 0.6, 0.8])
 def test_floating_box_draft_matches_archimedes(ratio):
     """The water a box of 10 x 5 particles (l0 = 2 cm) displaces, in water two box
-    heights deep, is within 0.3 l0 of Archimedes' (measured -0.10, -0.16, -0.13 l0;
-    validation/floating_draft.py has the matrix, -0.37 to +0.30 l0). With the
+    heights deep, is within 0.3 l0 of Archimedes' (measured over 3 s on an AMD EPYC
+    host: +0.005, -0.288, -0.293 l0 at ratio 0.3 / 0.6 / 0.8, close to the gate at
+    this coarsest spacing; validation/floating_draft.py has the matrix). With the
     seed's P = 0 at the surface particles' centres (`surface_head=0`) these boxes
     displaced +0.38 to +0.53 l0 too much."""
     case = jaxmps.scenes.floating_box(density_ratio=ratio, spacing=0.02)
