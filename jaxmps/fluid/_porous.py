@@ -31,6 +31,7 @@ import equinox as eqx
 import jax.numpy as jnp
 from jaxtyping import Array, Float
 
+from .._numerics import safe_norm
 from .._types import Kind, Kinds, Mask, Positions, Scalar, Velocities
 
 # Directions by name: an axis, the vertical (the last axis), or all components.
@@ -98,14 +99,6 @@ def resistance_factor(
     return 2.0 / (a + jnp.sqrt(a * a + 4.0 * dt * drag * speed))
 
 
-def _speed(velocity: Velocities) -> Float[Array, " n"]:
-    """|u| with a finite derivative at rest (the quadratic drag's |u| u has a
-    zero derivative there)."""
-    squared = jnp.sum(velocity**2, axis=-1)
-    positive = squared > 0
-    return jnp.where(positive, jnp.sqrt(jnp.where(positive, squared, 1.0)), 0.0)
-
-
 def damp(
     regions: PorousRegions,
     kappa: Float[Array, " r"],
@@ -130,7 +123,9 @@ def damp(
         relative = velocity - frame_velocity[None, :]
         axis = regions.axes[i]
         if axis is None:
-            factor = resistance_factor(_speed(relative), dt, kappa[i], drag[i])
+            # 0 at rest, with a finite derivative there
+            speed = safe_norm(relative, jnp.ones_like(inside), placeholder=0.0)
+            factor = resistance_factor(speed, dt, kappa[i], drag[i])
             damped = relative * factor[:, None]
         else:
             component = relative[:, axis]
