@@ -8,10 +8,11 @@ the mean over 0.5-2 s against rho g (H - y_p) (`scenes.hydrostatic_pressure`),
 and the noise: the standard deviation over 0.5-2 s, both relative to that value.
 The high-accuracy scheme must be no noisier than `standard` in any tank.
 
-Run: python validation/still_water_noise.py
+Run: python validation/still_water_noise.py [--spacings 0.02]
 (writes results/still_water_noise_cpu.{json,md})
 """
 
+import argparse
 import json
 import pathlib
 import time
@@ -60,11 +61,14 @@ def run(width, depth, spacing, scheme, t_end=2.0):
     )
 
 
-def main():
+def main(argv=None):
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("--spacings", type=float, nargs="+", default=list(SPACINGS))
+    args = p.parse_args(argv)
     jax.config.update("jax_enable_x64", True)
     rows = []
     for width, depth in TANKS:
-        for spacing in SPACINGS:
+        for spacing in args.spacings:
             if width / spacing > 60 and spacing < 0.02:
                 continue  # the 1 m tank at 1 cm: 5000 particles, left to a GPU
             for scheme in SCHEMES:
