@@ -323,8 +323,11 @@ def _describe(data) -> int:
         f"  probes   {len(data.probes.get('time', []))} rows: {', '.join(names) or '-'}"
     )
     if data.bodies:
-        count = data.bodies["centre"].shape[1]
-        print(f"  bodies   {count} rigid, per frame: {', '.join(sorted(data.bodies))}")
+        # Each body model saves its own fields (`frame_fields`); rigid bodies
+        # are counted by their centres.
+        rigid = data.bodies.get("centre")
+        count = "" if rigid is None else f"{rigid.shape[1]} rigid, "
+        print(f"  bodies   {count}per frame: {', '.join(sorted(data.bodies))}")
     if data.state:
         from ._result import Result, result_from_code
 
