@@ -44,12 +44,17 @@ class Coupling(eqx.Module):
             reference distances); -1 elsewhere; None: no deformable body. The
             pressure stage's source counts these in place of the body's pairs as
             they are (`source_view`), shape (n,).
+        hidden: particles the fluid does not see (DEM grains, which feel the
+            fluid through drag and lift alone and act on it through nothing):
+            every pair with one of them weighs nothing in the fluid stages
+            (`visible`); None: none, shape (n,).
     """
 
     density: Float[Array, " n"]
     owner: Int[Array, " n"]
     as_fluid: Bool[Array, " n"]
     reference_density: Float[Array, " n"] | None = None
+    hidden: Bool[Array, " n"] | None = None
 
     @property
     def owned(self) -> Bool[Array, " n"]:
@@ -92,6 +97,27 @@ class Coupling(eqx.Module):
         )
         own = jnp.where(held, self.reference_density, 0.0)
         return seen, number_density(seen) + own
+
+
+def visible(coupling: Coupling | None, pairs: Pairs, r_e: float) -> Pairs:
+    """`pairs` as the fluid stages see them: a pair with a hidden particle
+    (`Coupling.hidden`) is no pair (not valid, no weight, no offset, distance
+    r_e); the lists keep its index (a body model may read its own particles'
+    rows)."""
+    if coupling is None or coupling.hidden is None:
+        return pairs
+    hidden = coupling.hidden
+    seen = ~(hidden[:, None] | take_rows(hidden, pairs.index))
+    return eqx.tree_at(
+        lambda p: (p.valid, p.weight, p.offset, p.distance),
+        pairs,
+        (
+            pairs.valid & seen,
+            jnp.where(seen, pairs.weight, 0.0),
+            tuple(jnp.where(seen, o, 0.0) for o in pairs.offset),
+            jnp.where(seen, pairs.distance, r_e),
+        ),
+    )
 
 
 def source_view(

@@ -4,6 +4,7 @@
     boundaries   move walls, feed the inflow                fluid.move_walls,
                                                             fluid.apply_inflow
     coupling     what the body models impose on the fluid   <model>.coupling
+                 (and which particles it does not see)
     neighbours   lists at r^k (carried, or searched)        neighbours.search
     predict      u* = u^k + dt (nu lap u + g)               fluid.predict
     porous       resistance in porous damping regions,      fluid.damp
@@ -38,7 +39,7 @@ from jaxtyping import Array, Bool, Float
 
 from . import fluid, neighbours, operators
 from ._checks import check_compatible
-from ._coupling import Coupling, source_view
+from ._coupling import Coupling, source_view, visible
 from ._params import Params
 from ._result import Result, StepInfo, update_result
 from ._scene import Scene
@@ -68,7 +69,7 @@ def _step(
 
     with jax.named_scope("neighbours"):
         nbrs_k, pairs_k = _neighbours(
-            scene, state.position, active, state.neighbours, batch_axis
+            scene, state.position, active, coupling, state.neighbours, batch_axis
         )
     with jax.named_scope("predict"):
         u_star = fluid.predict(disc, scene.laplacian, params, state, pairs_k, coupling)
@@ -86,7 +87,7 @@ def _step(
             )
 
     with jax.named_scope("neighbours"):
-        nbrs, pairs = _neighbours(scene, x_star, active)
+        nbrs, pairs = _neighbours(scene, x_star, active, coupling)
     # The density a deformable body's particles have unstrained stands for their
     # own body's pairs (`Coupling.source_view`): the surface and the pressure's
     # source see the body rigid within itself.
@@ -216,8 +217,16 @@ def _coupling(scene: Scene, params: Params, state: State) -> Coupling | None:
             owner=jnp.where(part.owned, part.owner, merged.owner),
             as_fluid=jnp.where(part.owned, part.as_fluid, merged.as_fluid),
             reference_density=_merged_reference(merged, part),
+            hidden=_merged_hidden(merged, part),
         )
     return merged
+
+
+def _merged_hidden(merged: Coupling, part: Coupling) -> Mask | None:
+    """The merged `Coupling.hidden`: hidden by any model."""
+    if merged.hidden is None or part.hidden is None:
+        return part.hidden if merged.hidden is None else merged.hidden
+    return merged.hidden | part.hidden
 
 
 def _merged_reference(merged: Coupling, part: Coupling) -> Field | None:
@@ -234,11 +243,13 @@ def _neighbours(
     scene: Scene,
     position: Positions,
     active: Mask,
+    coupling: Coupling | None = None,
     cache: neighbours.NeighbourCache | None = None,
     batch_axis: str | None = None,
 ) -> tuple[neighbours.Neighbours, operators.Pairs]:
     """Neighbour lists at `position` (the carried ones while valid) and their pair
-    geometry."""
+    geometry, as the fluid stages see it (`visible`: none with a hidden
+    particle)."""
     disc = scene.discretisation
     nbrs = neighbours.search(
         scene.grid,
@@ -250,7 +261,8 @@ def _neighbours(
         cache,
         batch_axis,
     )
-    return nbrs, operators.make_pairs(nbrs.index, position, disc.weight, disc.r_e)
+    pairs = operators.make_pairs(nbrs.index, position, disc.weight, disc.r_e)
+    return nbrs, visible(coupling, pairs, disc.r_e)
 
 
 def _pressure_inputs(
