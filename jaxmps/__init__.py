@@ -3,7 +3,7 @@
 Everyday API, re-exported here:
 
 - building a simulation: `scenes` (built-in cases), `make_scene`, `make_params`,
-  `make_state`, `add_rigid_bodies`, `add_elastic_bodies`,
+  `make_state`, `add_rigid_bodies`, `add_elastic_bodies`, `add_grains`,
   `add_porous_regions` (with `PorousRegion`), `schemes` (discretisation
   presets);
 - its three objects: `Scene` (static), `Params` (differentiable), `State` (the
@@ -38,6 +38,7 @@ from ._build import add_rigid_bodies as add_rigid_bodies
 from ._build import make_params as make_params
 from ._build import make_scene as make_scene
 from ._build import make_state as make_state
+from ._build_grains import add_grains as add_grains
 from ._coupling import Coupling as Coupling
 from ._coupling import FluidLoad as FluidLoad
 from ._devices import member_mesh as member_mesh

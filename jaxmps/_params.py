@@ -25,6 +25,11 @@ VALUE_RULES = {
     "elastic.density": "positive",
     "porous.kappa": "positive",
     "porous.drag": ">= 0",
+    "grains.friction": ">= 0",
+    "grains.restitution": "in (0, 1]",
+    "grains.density": "positive",
+    "grains.stiffness": "positive",
+    "grains.lift": ">= 0",
 }
 
 
@@ -49,9 +54,17 @@ def _check_fields(module, prefix: str, where: str, nested: bool) -> None:
             good &= array > 0
         elif rule == ">= 0":
             good &= array >= 0
+        elif rule == "in (0, 1]":
+            good &= (array > 0) & (array <= 1)
         if not np.all(good):
             shown = array.item() if array.size == 1 else array.tolist()
-            want = "finite" if rule == "finite" else f"{rule} and finite"
+            want = (
+                "finite"
+                if rule == "finite"
+                else f"{rule}"
+                if rule.startswith("in ")
+                else f"{rule} and finite"
+            )
             raise ValueError(f"{where}Params.{name} must be {want}, got {shown}.")
 
 
@@ -169,6 +182,33 @@ class PorousParams(eqx.Module):
         _check_fields(self, "porous.", "", nested=False)
 
 
+class GrainParams(eqx.Module):
+    """Parameters of the DEM grains (differentiable; see `jaxmps.bodies.Grains`),
+    one value for all the grains of a Scene.
+
+    Attributes:
+        friction: Coulomb friction coefficient mu of a contact (grain-grain and
+            grain-wall); seed 002 takes 0.577 (tan 30 degrees).
+        restitution: the normal coefficient of restitution e of a binary
+            collision, in (0, 1]: the contact's dashpot is damped at the ratio
+            -ln e / sqrt(pi^2 + ln^2 e) of its reduced mass.
+        density: the grains' material density rho_s [kg/m^3]; grains in water
+            are advanced with rho_s - rho_w (seed 002 §5.1).
+        stiffness: the normal contact stiffness k_n [N/m]; the tangential one is
+            k_n / (2 (1 + nu_p)).
+        lift: the lift coefficient C_L of the fluid force (0.2 in seed 002).
+    """
+
+    friction: Float[Array, ""] = eqx.field(converter=jnp.asarray)
+    restitution: Float[Array, ""] = eqx.field(converter=jnp.asarray)
+    density: Float[Array, ""] = eqx.field(converter=jnp.asarray)
+    stiffness: Float[Array, ""] = eqx.field(converter=jnp.asarray)
+    lift: Float[Array, ""] = eqx.field(converter=jnp.asarray)
+
+    def __check_init__(self):
+        _check_fields(self, "grains.", "", nested=False)
+
+
 class Params(eqx.Module):
     """Physical coefficients. Float arrays only: changing a value never recompiles.
 
@@ -189,6 +229,8 @@ class Params(eqx.Module):
             exactly when the Scene has elastic bodies.
         porous: per-region coefficients of the porous damping regions, present
             exactly when the Scene has them.
+        grains: the DEM grains' friction, restitution, density, stiffness and
+            lift coefficient, present exactly when the Scene has grains.
     """
 
     density: Float[Array, ""] = eqx.field(converter=jnp.asarray)
@@ -202,6 +244,7 @@ class Params(eqx.Module):
     rigid: RigidParams | None = None
     elastic: ElasticParams | None = None
     porous: PorousParams | None = None
+    grains: GrainParams | None = None
 
     def __check_init__(self):
         # Only concrete values can be checked; traced values pass through.

@@ -64,6 +64,14 @@ class Result(eqx.Enumeration):
         "`--max-steps-per-save` on the command line). Raise it, or save more "
         "often (`save_every`)."
     )
+    contact_overflow = (
+        "A DEM grain had more contact candidates (grains and walls within its "
+        "contact distance and skin) than `Grains.contact_capacity` slots, or the "
+        "grains' search cells held more than their candidate capacity. Raise "
+        "them (`jaxmps.add_grains(contact_capacity=..., candidate_capacity=...)`; "
+        "scene setting `contact_capacity=...`), or find why grains crowd (an "
+        "overlapping start, a stiffness too low for the load)."
+    )
 
 
 # Equinox's `Enumeration` has no public accessor for an item's integer code, which

@@ -5,7 +5,7 @@ from typing import ClassVar
 import equinox as eqx
 
 from ._stepping import Adaptive
-from .bodies import AbstractBodyModel, ElasticBodies, RigidBodies
+from .bodies import AbstractBodyModel, ElasticBodies, Grains, RigidBodies
 from .fluid import (
     AbstractPressureSolver,
     CollisionGuard,
@@ -60,6 +60,7 @@ class Scene(eqx.Module):
         motion: optional prescribed motion of wall particles (piston, shaken tank).
         rigid: optional rigid bodies (with contact and friction).
         elastic: optional elastic bodies.
+        grains: optional DEM grains (`jaxmps.add_grains`).
         porous: optional porous damping regions (a resistance on the fluid
             velocity in boxes, `jaxmps.add_porous_regions`).
         escape_limit: how many fluid particles may leave the domain box (spray
@@ -78,7 +79,7 @@ class Scene(eqx.Module):
     # (`params.rigid.mu_kinetic`, `calibrate(..., "rigid.mu_kinetic")`). Every place
     # that goes over the models (step, checks, frames, run files) reads this tuple:
     # a new model is its module under `bodies/`, its three fields and one entry here.
-    body_fields: ClassVar[tuple[str, ...]] = ("rigid", "elastic")
+    body_fields: ClassVar[tuple[str, ...]] = ("rigid", "elastic", "grains")
 
     discretisation: Discretisation
     capacity: int
@@ -98,6 +99,7 @@ class Scene(eqx.Module):
     motion: PrescribedMotion | None = None
     rigid: RigidBodies | None = None
     elastic: ElasticBodies | None = None
+    grains: Grains | None = None
     porous: PorousRegions | None = None
     time_step: Adaptive | None = None
     escape_limit: int = 0

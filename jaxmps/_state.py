@@ -83,6 +83,36 @@ class ElasticState(eqx.Module):
     elastic_pressure: Float[Array, " m"]
 
 
+class GrainState(eqx.Module):
+    """The DEM grains' part of the scan carry, over their m grains; `w` wall
+    particles they can touch, `k` contact slots per grain; `a` spin components (1
+    in 2-D, 3 in 3-D). A contact partner is numbered in the DEM set: the grains
+    0..m-1, then the walls m..m+w-1; m+w marks an empty slot.
+
+    Attributes:
+        index: each grain's slot in the State, shape (m,).
+        walls: the State slots of the wall particles grains touch, shape (w,).
+        diameter: each grain's diameter [m], shape (m,).
+        partner: each grain's contact candidates (those within the contact
+            distance and a skin at the step's start), shape (m, k).
+        shear: the tangential spring displacement of each slot's contact [m],
+            one (m, k) array per axis, shape (d, m, k); zero where not touching.
+        spin: each grain's angular velocity [rad/s], shape (m, a).
+        fluid_force: the drag and lift on each grain in the last step [N],
+            shape (m, d).
+        contact_count: each grain's contacts at the end of the last step, (m,).
+    """
+
+    index: Int[Array, " m"]
+    walls: Int[Array, " w"]
+    diameter: Float[Array, " m"]
+    partner: Int[Array, "m k"]
+    shear: Float[Array, "d m k"]
+    spin: Float[Array, "m a"]
+    fluid_force: Float[Array, "m d"]
+    contact_count: Int[Array, " m"]
+
+
 class State(eqx.Module):
     """Fixed-capacity particle state. Arrays only; its structure never changes.
 
@@ -106,6 +136,8 @@ class State(eqx.Module):
             rigid bodies.
         elastic: the elastic bodies' sub-state, present exactly when the Scene
             has elastic bodies.
+        grains: the DEM grains' sub-state, present exactly when the Scene has
+            grains.
         neighbours: the neighbour lists carried to the next step, or None (a new
             search at the start of every step). `simulate` adds it for the rollout
             (when `Scene.neighbour_skin` > 0) and removes it from what it returns
@@ -126,4 +158,5 @@ class State(eqx.Module):
     result: Result
     rigid: RigidState | None = None
     elastic: ElasticState | None = None
+    grains: GrainState | None = None
     neighbours: NeighbourCache | None = None

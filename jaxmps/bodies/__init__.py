@@ -1,9 +1,10 @@
 """Bodies carried by the flow. Each kind is a body model (`AbstractBodyModel`)
 that the step couples to the fluid through two records (`jaxmps.Coupling` in,
-`jaxmps.FluidLoad` out): rigid bodies with contact and friction, and elastic
-bodies."""
+`jaxmps.FluidLoad` out): rigid bodies with contact and friction, elastic
+bodies, and DEM grains."""
 
 from .._state import ElasticState as ElasticState
+from .._state import GrainState as GrainState
 from .._state import RigidState as RigidState
 from ._base import AbstractBodyModel as AbstractBodyModel
 from ._elastic import ElasticBodies as ElasticBodies
@@ -21,6 +22,16 @@ from ._friction import ContactPressure as ContactPressure
 from ._friction import ContactReaction as ContactReaction
 from ._friction import Coulomb as Coulomb
 from ._friction import SubmergedWeight as SubmergedWeight
+from ._grain_laws import Contacts as Contacts
+from ._grain_laws import contact_forces as contact_forces
+from ._grain_laws import damping_ratio as damping_ratio
+from ._grain_laws import drag_coefficient as drag_coefficient
+from ._grain_laws import fluid_force as fluid_force
+from ._grain_laws import rule_step as rule_step
+from ._grain_laws import rule_stiffness as rule_stiffness
+from ._grain_laws import seed_contact_parameters as seed_contact_parameters
+from ._grain_laws import sphere_volume as sphere_volume
+from ._grains import Grains as Grains
 from ._rigid import RigidBodies as RigidBodies
 from ._rigid import is_body as is_body
 from ._setup import body_indices as body_indices
