@@ -24,6 +24,14 @@ from ._elastic import oscillation_mean as oscillation_mean
 from ._elastic import plate_theory as plate_theory
 from ._flume import DEFAULTS as _FLUME
 from ._flume import flume as _flume
+from ._grains import GRAIN_DROP as _GRAIN_DROP
+from ._grains import GRAIN_SETTLING as _GRAIN_SETTLING
+from ._grains import GRANULAR_COLLAPSE as _GRANULAR_COLLAPSE
+from ._grains import column_packing as column_packing
+from ._grains import grain_drop as _grain_drop
+from ._grains import grain_settling as _grain_settling
+from ._grains import granular_collapse as _granular_collapse
+from ._grains import settling_velocity as settling_velocity
 from ._hydrostatic import DEFAULTS as _HYDROSTATIC
 from ._hydrostatic import hydrostatic as _hydrostatic
 from ._hydrostatic import hydrostatic_pressure as hydrostatic_pressure
@@ -36,6 +44,9 @@ from ._probes import ElasticAmplitude as ElasticAmplitude
 from ._probes import ElasticValue as ElasticValue
 from ._probes import FluidPressureNear as FluidPressureNear
 from ._probes import FrontPosition as FrontPosition
+from ._probes import GrainHeight as GrainHeight
+from ._probes import GrainRunout as GrainRunout
+from ._probes import GrainValue as GrainValue
 from ._probes import ModeAmplitude as ModeAmplitude
 from ._probes import PressureAt as PressureAt
 from ._probes import PressureLevel as PressureLevel
@@ -63,6 +74,9 @@ elastic_plate = accepts_porous(_elastic_plate)
 floating_box = accepts_porous(_floating_box)
 flume = accepts_porous(_flume)
 friction_tilt = accepts_porous(_friction_tilt)
+grain_drop = accepts_porous(_grain_drop)
+grain_settling = accepts_porous(_grain_settling)
+granular_collapse = accepts_porous(_granular_collapse)
 hydrostatic = accepts_porous(_hydrostatic)
 sloshing_tank = accepts_porous(_sloshing_tank)
 standing_wave = accepts_porous(_standing_wave)
@@ -78,6 +92,9 @@ _REGISTRY = {
     "elastic_plate": (elastic_plate, _ELASTIC_PLATE),
     "floating_box": (floating_box, _FLOATING_BOX),
     "flume": (flume, _FLUME),
+    "grain_drop": (grain_drop, _GRAIN_DROP),
+    "grain_settling": (grain_settling, _GRAIN_SETTLING),
+    "granular_collapse": (granular_collapse, _GRANULAR_COLLAPSE),
     "hydrostatic": (hydrostatic, _HYDROSTATIC),
     "sloshing_tank": (sloshing_tank, _SLOSHING_TANK),
     "standing_wave": (standing_wave, _STANDING_WAVE),

@@ -256,6 +256,18 @@ RULES = {
     "end_velocity": _FINITE,
     "porous_kappa": _POSITIVE,
     "porous_drag": _NON_NEGATIVE,
+    # grains
+    "grain_diameter": _LENGTH,
+    "grain_density": _POSITIVE,
+    "friction": _NON_NEGATIVE,
+    "restitution": Range(0, 1, open_low=True),
+    "lift": _NON_NEGATIVE,
+    "stiffness": _POSITIVE,
+    "contact_capacity": _COUNT,
+    "polydispersity": Range(0, 1, open_high=True),
+    "seed": Range(0, 2**31 - 1),
+    "release_depth": _LENGTH,
+    "drop_height": _LENGTH,
 }
 # Settings that are not one number: checked where they are read
 # (`_porous.accepts_porous`, `jaxmps.add_porous_regions`).
@@ -287,6 +299,8 @@ _WHOLE = (
     "pool",
     "escape_limit",
     "substeps",
+    "contact_capacity",
+    "seed",
 )
 
 

@@ -404,3 +404,71 @@ class ElasticAmplitude(AbstractProbe):
             es.neighbours,
         )
         return jnp.max(jnp.abs(stress[index, self.axis, self.axis]))
+
+
+class GrainValue(AbstractProbe):
+    """The mean over the grains `grains` (numbers within the grains' sub-state) of
+    their position (`field` "position") or velocity ("velocity"), component
+    `axis`."""
+
+    name: str
+    grains: tuple[int, ...]
+    field: str
+    axis: int = 0
+
+    def __check_init__(self):
+        if self.field not in ("position", "velocity"):
+            raise ValueError('GrainValue.field must be "position" or "velocity".')
+
+    def __call__(self, scene: Scene, state: State):
+        del scene
+        index = state.grains.index[jnp.asarray(self.grains)]
+        value = state.position if self.field == "position" else state.velocity
+        return jnp.mean(value[index, self.axis])
+
+
+class GrainRunout(AbstractProbe):
+    """How far a grain deposit reaches along x from `x_start` [m]: the grains
+    within `band` of the floor `floor` are binned in bins of one grain diameter
+    `diameter` from `x_start`; the runout is the largest x (plus d/2) in the last
+    bin of the contiguous run of occupied bins, so that a grain bounced ahead
+    alone does not count."""
+
+    name: str
+    x_start: float
+    floor: float
+    band: float
+    diameter: float
+    n_bins: int
+
+    def __call__(self, scene: Scene, state: State):
+        del scene
+        gs = state.grains
+        x = state.position[gs.index, 0] - self.x_start
+        low = state.position[gs.index, -1] < self.floor + self.band
+        hit = low & (x >= 0)
+        b = jnp.clip(jnp.floor(x / self.diameter), 0, self.n_bins - 1)
+        b = b.astype(jnp.int32)
+        occupied = jnp.zeros(self.n_bins, bool).at[b].max(hit)
+        run = jnp.sum(jnp.cumprod(occupied.astype(jnp.int32)))
+        last = hit & (b == run - 1)
+        front = jnp.max(jnp.where(last, x, -jnp.inf)) + 0.5 * self.diameter
+        return jnp.where(run > 0, front, 0.0)
+
+
+class GrainHeight(AbstractProbe):
+    """The height above `floor` of the highest grain whose centre lies in
+    [x0, x1), plus its radius [m]; zero where there is none."""
+
+    name: str
+    x0: float
+    x1: float
+    floor: float
+
+    def __call__(self, scene: Scene, state: State):
+        del scene
+        gs = state.grains
+        x = state.position[gs.index]
+        inside = (x[:, 0] >= self.x0) & (x[:, 0] < self.x1)
+        top = jnp.max(jnp.where(inside, x[:, -1] + 0.5 * gs.diameter, -jnp.inf))
+        return jnp.where(jnp.isfinite(top), top - self.floor, 0.0)
