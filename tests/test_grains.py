@@ -551,3 +551,16 @@ def test_a_dropped_grain_rebounds_by_its_restitution():
     rebound = v[np.argmin(v) :].max()
     assert impact == pytest.approx(math.sqrt(2 * 9.81 * 0.03), rel=0.02)
     assert 0.5 <= rebound / impact < 0.6
+
+
+def test_a_step_traces_with_one_grain_field_traced():
+    """Under jit with only the restitution traced (as `calibrate` traces the
+    fitted field), the checks of the concrete fields run on the host."""
+    case = jaxmps.scenes.grain_drop(dt=5e-4)
+
+    @jax.jit
+    def step(e):
+        params = eqx.tree_at(lambda p: p.grains.restitution, case.params, e)
+        return jaxmps.step(case.scene, params, case.state)[0].position
+
+    assert np.all(np.isfinite(np.asarray(step(0.5))))

@@ -15,6 +15,7 @@ from typing import ClassVar
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 from jaxtyping import Array, Float, Int
 
 from .. import neighbours
@@ -196,19 +197,22 @@ class Grains(AbstractBodyModel):
         self.check_time_step(params, state)
 
     def check_time_step(self, params: Params, state: State) -> None:
-        """Refuse a concrete dt beyond `substeps` sub-steps of the DEM limit."""
+        """Refuse a concrete dt beyond `substeps` sub-steps of the DEM limit
+        (computed in NumPy: under a trace, even concrete values are staged)."""
         g = params.grains
         values = (params.dt, g.density, g.stiffness, params.density)
         if not is_concrete(*values, state.grains.diameter):
             return
-        limit = self.substeps * float(self.substep_limit(params, state.grains.diameter))
-        dt = float(params.dt)
+        dt, density, stiffness, water = (float(v) for v in values)
+        rho = density - water if self.submerged else density
+        lightest = rho * sphere_volume(float(np.asarray(state.grains.diameter).min()))
+        limit = self.substeps * 2.0 * rule_step(lightest, stiffness)
         if dt > limit * (1 + 1e-9):
             raise ValueError(
                 f"Params.dt = {dt:.3g} s is beyond the grains' contact limit "
                 f"{limit:.3g} s (substeps={self.substeps} x 2 x (pi/10) sqrt(m / "
-                f"(2 k_n)), stiffness={float(g.stiffness):.4g} N/m): lower dt, "
-                "lower Params.grains.stiffness, or take more DEM sub-steps per step "
+                f"(2 k_n)), stiffness={stiffness:.4g} N/m): lower dt, lower "
+                "Params.grains.stiffness, or take more DEM sub-steps per step "
                 "(`add_grains(..., substeps=...)`, scene setting `substeps`)."
             )
 
