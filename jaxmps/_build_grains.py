@@ -40,6 +40,7 @@ def add_grains(
     overlap: float = 0.02,
     speed: float | None = None,
     lift: float = 0.2,
+    rolling: float = 0.0,
     diameter=None,
     contact_capacity: int | None = None,
     candidate_capacity: int | None = None,
@@ -69,6 +70,7 @@ def add_grains(
         speed: that speed [m/s]; None: the free-fall speed sqrt(2 g H) over the
             height H spanned by the grains and the fluid.
         lift: the lift coefficient C_L (seed 002: 0.2).
+        rolling: the rolling resistance coefficient mu_r (seed 002: none, 0).
         diameter: the grains' diameter [m], a scalar or one per grain; None: the
             scene's spacing l0 (seed 002 §2.10: one size for all particles).
         contact_capacity: contact slots per grain (default `CONTACT_CAPACITY`).
@@ -113,6 +115,7 @@ def add_grains(
         "density": density,
         "stiffness": stiffness,
         "lift": lift,
+        "rolling": rolling,
     }
     _check_material(params, values, submerged)
     if stiffness is None:

@@ -30,6 +30,7 @@ VALUE_RULES = {
     "grains.density": "positive",
     "grains.stiffness": "positive",
     "grains.lift": ">= 0",
+    "grains.rolling": ">= 0",
 }
 
 
@@ -197,6 +198,9 @@ class GrainParams(eqx.Module):
         stiffness: the normal contact stiffness k_n [N/m]; the tangential one is
             k_n / (2 (1 + nu_p)).
         lift: the lift coefficient C_L of the fluid force (0.2 in seed 002).
+        rolling: the rolling resistance coefficient mu_r: a contact resists the
+            relative spin of its grains with a couple of at most mu_r R* F_n
+            (0 in seed 002, whose spheres roll freely; angular sand resists).
     """
 
     friction: Float[Array, ""] = eqx.field(converter=jnp.asarray)
@@ -204,6 +208,7 @@ class GrainParams(eqx.Module):
     density: Float[Array, ""] = eqx.field(converter=jnp.asarray)
     stiffness: Float[Array, ""] = eqx.field(converter=jnp.asarray)
     lift: Float[Array, ""] = eqx.field(converter=jnp.asarray)
+    rolling: Float[Array, ""] = eqx.field(converter=jnp.asarray, default=0.0)
 
     def __check_init__(self):
         _check_fields(self, "grains.", "", nested=False)

@@ -95,7 +95,7 @@ def _pair(offset, velocity, spin=(0.0, 0.0), diameter=0.01, shear=None):
     return x, v, w, jnp.full((2,), diameter), partner, shear, walls
 
 
-def _material(k_n=1e4, restitution=0.5, friction=0.5, mass=1e-3):
+def _material(k_n=1e4, restitution=0.5, friction=0.5, mass=1e-3, rolling=0.0):
     return _Material(
         k_n=jnp.asarray(k_n),
         k_s=jnp.asarray(k_n / 2.6),
@@ -103,6 +103,7 @@ def _material(k_n=1e4, restitution=0.5, friction=0.5, mass=1e-3):
         shear_damping=1 / math.sqrt(2.6),
         friction=jnp.asarray(friction),
         mass=jnp.full((2,), mass),
+        rolling=jnp.asarray(rolling),
     )
 
 
@@ -137,6 +138,26 @@ def test_contact_forces_are_the_spring_dashpot_slider():
     )
     assert float(jnp.abs(apart.force).max()) == 0.0
     assert float(jnp.abs(apart.shear).max()) == 0.0
+
+
+def test_rolling_resistance_is_a_couple_against_the_relative_spin():
+    """Two pressed grains rolling on each other without slip (opposite spins:
+    their contact points move together): each gets -mu_r R* F_n against its
+    spin relative to the other, equal and opposite; small relative spins are
+    stopped, not reversed (the cap)."""
+    delta = 1e-4
+    material = _material(rolling=0.2, restitution=1.0)
+    args = _pair((0.01 - delta, 0.0), (0.0, 0.0), spin=(30.0, -30.0))
+    h = jnp.asarray(1e-5)
+    out = bodies.contact_forces(*args, material, h)
+    f_n = 1e4 * delta
+    couple = 0.2 * 0.0025 * f_n  # R* = r r / (2 r) = 2.5 mm
+    np.testing.assert_allclose(out.torque[:, 0], [-couple, couple], rtol=1e-12)
+    slow = _pair((0.01 - delta, 0.0), (0.0, 0.0), spin=(1e-6, 0.0))
+    out = bodies.contact_forces(*slow, material, h)
+    inertia = 0.1 * 1e-3 * 0.01**2
+    step = float(out.torque[0, 0]) * float(h) / inertia
+    assert -1e-6 < step < 0  # at most half the relative spin, against it
 
 
 def _collide(restitution, substeps=2000, k_n=1e4, mass=1e-3):
@@ -209,7 +230,7 @@ def test_contacts_keep_momentum_and_angular_momentum(dim):
     for i in range(m):
         others = [j for j in range(m) if j != i]
         partner[i, : len(others)] = others
-    material = _material()
+    material = _material(rolling=0.3)
     material = dataclasses.replace(material, mass=jnp.asarray(1e-3 * (d / 0.01) ** 3))
     walls = _Walls(
         jnp.zeros((0, dim)), jnp.zeros((0, dim)), jnp.zeros((0,), bool), 0.01

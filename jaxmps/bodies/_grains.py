@@ -62,7 +62,8 @@ class Grains(AbstractBodyModel):
     eta_n = 2 zeta sqrt(m* k_n) with m* the pair's reduced mass (the grain's own
     against a wall) and zeta the damping ratio of the restitution. The spin is
     driven by the torques (d/2 - delta/2) n x F_t, with I = m d^2 / 10 (a sphere;
-    seed 002 leaves it open). No rolling resistance (as the seed).
+    seed 002 leaves it open), and resisted by a rolling couple of at most mu_r
+    R* F_n (`Params.grains.rolling`; 0, the seed's free rolling, by default).
 
     In water (`submerged`), a grain's mass and weight are those of its submerged
     density rho_s - rho_w (seed 002 §5.1: buoyancy as submerged weight, no added
@@ -178,7 +179,14 @@ class Grains(AbstractBodyModel):
 
     def check(self, params: Params, state: State) -> None:
         g = params.grains
-        for name in ("friction", "restitution", "density", "stiffness", "lift"):
+        for name in (
+            "friction",
+            "restitution",
+            "density",
+            "stiffness",
+            "lift",
+            "rolling",
+        ):
             shape = getattr(g, name).shape
             if shape != ():
                 raise ValueError(

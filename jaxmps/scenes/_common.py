@@ -262,6 +262,7 @@ RULES = {
     "friction": _NON_NEGATIVE,
     "restitution": Range(0, 1, open_low=True),
     "lift": _NON_NEGATIVE,
+    "rolling": _NON_NEGATIVE,
     "stiffness": _POSITIVE,
     "contact_capacity": _COUNT,
     "polydispersity": Range(0, 1, open_high=True),
