@@ -51,8 +51,9 @@ def add_grains(
 ) -> tuple[Scene, Params, State]:
     """Turn particles of a built case into DEM grains (seed 002 §5): spheres of
     one particle each (`Kind.SEDIMENT`), in contact with one another and with the
-    case's wall particles, hidden from the fluid, which drags and lifts them
-    (`jaxmps.bodies.Grains`).
+    case's wall particles and the particles of its rigid and elastic bodies
+    (which do not feel them), hidden from the fluid, which drags and lifts them
+    (`jaxmps.bodies.Grains`). Add the bodies first.
 
     Args:
         scene, params, state: a case (from `make_scene` etc.).
@@ -131,7 +132,12 @@ def add_grains(
         )
     grain_params = _grain_params(params, values)
     _refuse_overlaps(position[index], sizes)
-    walls = np.nonzero(active & (kind == int(Kind.WALL)))[0]
+    # Choice: grains touch every solid particle that is not a grain (walls, and
+    # rigid and elastic bodies as spheres of l0 moving with them), and the
+    # bodies do not feel them: seed 002's detached grains "do not affect the
+    # fluid or the rigid bodies".
+    solid = (Kind.WALL, Kind.RIGID, Kind.ELASTIC)
+    walls = np.nonzero(active & np.isin(kind, [int(k) for k in solid]))[0]
     skin = 2.0 * courant * l0
     reach = 0.5 * (sizes.max() + max(sizes.max(), l0))
     radius = float(reach + skin)

@@ -91,7 +91,8 @@ class GrainState(eqx.Module):
 
     Attributes:
         index: each grain's slot in the State, shape (m,).
-        walls: the State slots of the wall particles grains touch, shape (w,).
+        walls: the State slots of the other solid particles grains touch (walls,
+            rigid and elastic bodies' particles), shape (w,).
         diameter: each grain's diameter [m], shape (m,).
         partner: each grain's contact candidates (those within the contact
             distance and a skin at the step's start), shape (m, k).

@@ -585,3 +585,34 @@ def test_a_step_traces_with_one_grain_field_traced():
         return jaxmps.step(case.scene, params, case.state)[0].position
 
     assert np.all(np.isfinite(np.asarray(step(0.5))))
+
+
+def test_a_grain_lands_on_a_rigid_block_and_stays_on_it():
+    """Grains touch rigid bodies' particles as they touch walls: a grain dropped
+    onto a block resting on the floor comes to rest on the block's top."""
+    l0 = 0.005
+    walls, kind = geometry.tank([0, 0], [0.06, 0.06], l0, layers=3)
+    block = geometry.block([0.02, 0.0], [0.04, 0.02], l0)
+    grain = np.asarray([[0.03, 0.04]])  # over the dimple of the block's top
+    position = np.concatenate([grain, block, walls])
+    kinds = np.concatenate([np.zeros(1 + len(block), np.int32), kind])
+    scene = jaxmps.make_scene(
+        position, l0, ([-0.03, -0.03], [0.09, 0.1]), time_step=jaxmps.Adaptive()
+    )
+    params = jaxmps.make_params(2, dt=1e-3)
+    state = jaxmps.make_state(scene, position, kinds)
+    body = np.full(len(position), -1)
+    body[1 : 1 + len(block)] = 0
+    scene, params, state = jaxmps.add_rigid_bodies(
+        scene, params, state, body, density=2000.0
+    )
+    mask = np.arange(len(position)) == 0
+    scene, params, state = jaxmps.add_grains(
+        scene, params, state, mask, friction=0.5, restitution=0.1, density=2650.0
+    )
+    out = jaxmps.simulate(scene, params, state, times=[0.3])
+    y = float(out.state.position[0, 1])
+    top = float(np.asarray(out.state.position)[1 : 1 + len(block), 1].max())
+    # on the block's top particles (a dimple between two at most l0 / 2 deeper)
+    assert top + 0.5 * l0 < y < top + 1.05 * l0
+    assert abs(float(out.state.velocity[0, 1])) < 0.01
