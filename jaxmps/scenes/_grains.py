@@ -317,7 +317,7 @@ def granular_collapse(**overrides) -> Case:
         velocity_scale(height, c["gravity"]),
     )
     probes = (
-        GrainRunout("runout", 0.0, 0.0, 1.5 * d, d, int(math.ceil(floor / d)) + 1),
+        GrainRunout("runout", 0.0, 0.0, 1.5 * d, d, int(math.ceil(floor / d)) // 2 + 1),
         GrainHeight("height", 0.0, 2.0 * d, 0.0),
     )
     return Case(

@@ -429,10 +429,12 @@ class GrainValue(AbstractProbe):
 
 class GrainRunout(AbstractProbe):
     """How far a grain deposit reaches along x from `x_start` [m]: the grains
-    within `band` of the floor `floor` are binned in bins of one grain diameter
+    within `band` of the floor `floor` are binned in bins of two grain diameters
     `diameter` from `x_start`; the runout is the largest x (plus d/2) in the last
     bin of the contiguous run of occupied bins, so that a grain bounced ahead
-    alone does not count."""
+    alone does not count. (Bins of one diameter broke the run where a
+    polydisperse bottom row left one without a grain centre: a deposit 3.3 L0
+    long once read 0.95 L0.)"""
 
     name: str
     x_start: float
@@ -447,7 +449,7 @@ class GrainRunout(AbstractProbe):
         x = state.position[gs.index, 0] - self.x_start
         low = state.position[gs.index, -1] < self.floor + self.band
         hit = low & (x >= 0)
-        b = jnp.clip(jnp.floor(x / self.diameter), 0, self.n_bins - 1)
+        b = jnp.clip(jnp.floor(x / (2.0 * self.diameter)), 0, self.n_bins - 1)
         b = b.astype(jnp.int32)
         occupied = jnp.zeros(self.n_bins, bool).at[b].max(hit)
         run = jnp.sum(jnp.cumprod(occupied.astype(jnp.int32)))
