@@ -8,7 +8,7 @@ import equinox as eqx
 import jax.numpy as jnp
 from jaxtyping import Array, Bool, Float, Int
 
-from .._numerics import safe_norm, take_rows
+from .._numerics import component_dot, safe_norm, take_rows
 from .._params import Params
 from .._types import Scalar
 
@@ -192,10 +192,6 @@ def _cross_3d(a: PairVectors, b: PairVectors) -> PairVectors:
     )
 
 
-def _dot(a: PairVectors, b: PairVectors) -> Float[Array, "m k"]:
-    return sum(x * y for x, y in zip(a, b, strict=True))
-
-
 def _rolling_torque(
     spin,
     spins,
@@ -226,7 +222,7 @@ def _rolling_torque(
         spin[:, a, None] - take_rows(spins[:, a], partner) for a in range(spin.shape[1])
     )
     if len(relative) == 3:
-        along = _dot(relative, normal)
+        along = component_dot(relative, normal)
         relative = tuple(w - along * n for w, n in zip(relative, normal, strict=True))
     size = safe_norm(relative, touching, placeholder=0.0)
     limit = material.rolling * effective * push
@@ -293,7 +289,7 @@ def contact_forces(
         relative = tuple(
             r - c for r, c in zip(relative, _cross_3d(turn, normal), strict=True)
         )
-    along = _dot(relative, normal)
+    along = component_dot(relative, normal)
     tangential = tuple(r - along * n for r, n in zip(relative, normal, strict=True))
     mass_i = material.mass[:, None]
     mass_j = take_rows(material.mass, partner)
@@ -311,7 +307,8 @@ def contact_forces(
     )
     # The tangential spring: turned into the contact's tangent plane, extended
     # by the sub-step's tangential motion, capped at the Coulomb limit.
-    held = tuple(s - _dot(tuple(shear), normal) * n for s, n in zip(shear, normal))
+    normal_part = component_dot(tuple(shear), normal)
+    held = tuple(s - normal_part * n for s, n in zip(shear, normal, strict=True))
     spring = tuple(
         jnp.where(touching, s + h * t, 0.0)
         for s, t in zip(held, tangential, strict=True)

@@ -148,18 +148,25 @@ def grain_settling(**overrides) -> Case:
     scene, params, state = _grain_case(
         c, "grain_settling", position, kind, mask, (lower, upper), scale
     )
-    probes = (
-        GrainValue("grain_velocity", (0,), "velocity", dim - 1),
-        GrainValue("grain_height", (0,), "position", dim - 1),
-    )
     config = {**c, "width": width, "depth": depth, "grain_diameter": d}
+    return _one_grain("grain_settling", scene, params, state, config)
+
+
+def _one_grain(name: str, scene, params, state, config: dict) -> Case:
+    """The Case of a scene of one grain, with its probes `grain_height` and
+    `grain_velocity` (vertical)."""
+    dim = scene.dim
+    probes = (
+        GrainValue("grain_height", (0,), "position", dim - 1),
+        GrainValue("grain_velocity", (0,), "velocity", dim - 1),
+    )
     return Case(
-        name="grain_settling",
+        name=name,
         scene=scene,
         params=params,
         state=state,
         probes=probes,
-        t_end=float(c["t_end"]),
+        t_end=float(config["t_end"]),
         config=config,
     )
 
@@ -215,20 +222,8 @@ def grain_drop(**overrides) -> Case:
     scene, params, state = _grain_case(
         c, "grain_drop", position, kind, mask, (lower, upper), scale
     )
-    probes = (
-        GrainValue("grain_height", (0,), "position", dim - 1),
-        GrainValue("grain_velocity", (0,), "velocity", dim - 1),
-    )
     config = {**c, "width": width, "grain_diameter": d}
-    return Case(
-        name="grain_drop",
-        scene=scene,
-        params=params,
-        state=state,
-        probes=probes,
-        t_end=float(c["t_end"]),
-        config=config,
-    )
+    return _one_grain("grain_drop", scene, params, state, config)
 
 
 GRANULAR_COLLAPSE = {
