@@ -95,8 +95,9 @@ def add_grains(
         ValueError: for a mask that selects no particle or an inactive, wall or
             body particle; friction < 0; restitution outside (0, 1]; density or
             stiffness not positive (or, in water, not above the fluid's
-            density); grains that overlap at the start; a `substeps` that leaves
-            `Params.dt` beyond the grains' contact limit.
+            density); grains that overlap at the start; grains in water larger
+            than r_e; a `substeps` that leaves `Params.dt` beyond the grains'
+            contact limit.
     """
     if scene.grains is not None:
         raise ValueError("This scene already has grains; add all in one call.")
@@ -132,6 +133,14 @@ def add_grains(
         )
     grain_params = _grain_params(params, values)
     _refuse_overlaps(position[index], sizes)
+    if submerged and sizes.max() > scene.r_e:
+        raise ValueError(
+            f"A grain of {sizes.max():g} m is larger than the fluid's influence "
+            f"radius r_e = {scene.r_e:g} m: the drag takes the fluid velocity around "
+            "a grain from its neighbours within r_e, a point-particle model. Give "
+            "grains at most r_e across (`diameter`, scene setting `grain_diameter`), "
+            "or a coarser fluid (a larger `spacing`)."
+        )
     # Choice: grains touch every solid particle that is not a grain (walls, and
     # rigid and elastic bodies as spheres of l0 moving with them), and the
     # bodies do not feel them: seed 002's detached grains "do not affect the

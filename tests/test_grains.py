@@ -456,6 +456,8 @@ def test_bad_grain_input_is_refused_by_name():
         _column(friction=-0.1)
     with pytest.raises(ValueError, match="grain_density"):
         _settling(grain_density=900.0)
+    with pytest.raises(ValueError, match=r"larger than the fluid's influence radius"):
+        _settling(grain_diameter=0.005)
     with pytest.raises(
         ValueError, match=r"Params.grains.restitution must be in \(0, 1\]"
     ):
