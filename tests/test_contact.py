@@ -270,3 +270,35 @@ def _contact(n=(0.0, 1.0), force=(0.0, 1000.0), pressure_sum=2000.0):
         pressure_sum=jnp.asarray([pressure_sum]),
         arm=jnp.asarray([[0.0, -0.5]]),
     )
+
+
+@pytest.mark.parametrize(
+    "width, height, below, above",
+    [(1.0, 1.0, 0.9, 1.1), (0.5, 1.0, 0.35, 0.55)],
+    ids=["cube", "tall"],
+)
+def test_block_tips_over_its_edge_only_beyond_the_static_limit(
+    width, height, below, above
+):
+    """With a friction too high to slide (mu = 1.5) and the friction torque on, a
+    block on a slope stays upright while the resultant of its weight falls inside
+    its base, tan(theta) < (width - l0) / (height - l0) (1 for the cube, 0.44 for a
+    block twice as tall as wide), and tips over beyond it. The contact force at the
+    lower edge gives the restoring moment; without it a cube toppled at 0.76."""
+    l0 = 0.1
+    case = jaxmps.scenes.friction_tilt(
+        block_size=width,
+        block_height=height,
+        friction_torque=True,
+        mu_static=1.5,
+        mu_kinetic=1.5,
+    )
+    limit = (width - l0) / (height - l0)
+    assert below < limit < above
+    theta = np.arctan([below, above])
+    gravity = np.stack([G * np.sin(theta), -G * np.cos(theta)], axis=1)
+    n = round(2.0 / float(case.params.dt))
+    out = jaxmps.sweep(case, {"gravity": gravity}, n_steps=n, save_every=n // 20)
+    angle = np.degrees(np.abs(np.asarray(out.saved["block_angle"])))
+    assert angle[0].max() < 1.0, angle[0].max()  # upright
+    assert angle[1, -1] > 60.0, angle[1, -1]  # tipped over

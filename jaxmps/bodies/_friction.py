@@ -165,9 +165,16 @@ class Coulomb(eqx.Module):
         params: Params,
         spacing: float,
         dim: int,
+        inertial_mass: Float[Array, " b"] | None = None,
     ) -> tuple[Float[Array, "b d"], Bool[Array, " b"]]:
-        """The friction impulse per body [N s] and whether each body slides."""
+        """The friction impulse per body [N s] and whether each body slides.
+
+        `velocity` is that of the point the impulse acts at and `inertial_mass`
+        the body's mass as that point feels it along the tangent (the body's
+        mass when it acts at the centre, the default)."""
         normal_force = self.normal(contact, mass, volume, params, spacing, dim)
+        if inertial_mass is not None:
+            mass = inertial_mass
         n = contact.normal
         tangential = velocity - jnp.sum(velocity * n, -1, keepdims=True) * n
         moving = contact.touching

@@ -67,12 +67,26 @@ class RigidBodies(AbstractBodyModel):
     # Choice: "pairs" by default, so that contact and friction keep the reaction
     # they are built on; floating scenes without friction choose "fluid".
     pressure: str = "pairs"
+    # Choice: a stiff, damped contact force (see `_push`); 0 leaves contact to the
+    # pressure alone, as both seeds do.
+    contact_stiffness: float = 0.2
+    contact_damping: float = 0.7
 
     def __check_init__(self):
         if self.count < 1:
             raise ValueError("RigidBodies.count must be at least 1.")
         if not self.contact_distance > 0:
             raise ValueError("RigidBodies.contact_distance must be positive.")
+        if not 0 <= self.contact_stiffness <= 0.5:
+            raise ValueError(
+                "RigidBodies.contact_stiffness must be in [0, 0.5] (a fraction of "
+                f"the explicit limit), got {self.contact_stiffness}."
+            )
+        if not 0 <= self.contact_damping <= 1:
+            raise ValueError(
+                "RigidBodies.contact_damping must be in [0, 1] (a damping ratio), "
+                f"got {self.contact_damping}."
+            )
         if self.pressure not in ("pairs", "fluid"):
             raise ValueError(
                 f"RigidBodies.pressure must be 'pairs' or 'fluid', got "
@@ -193,9 +207,22 @@ class RigidBodies(AbstractBodyModel):
             rot.cross(lever, change - dt * params.gravity[None, :])
         )
 
-        contact = self._contact(disc, state, load, body_sum, arm_k)
+        outward = _outward(load.pairs, _solids(state))
+        contact = self._contact(disc, state, load, body_sum, arm_k, outward)
+        push = self._push(disc, params, state, load, mass, rigid_k, body_sum, outward)
+        velocity = velocity + dt * body_sum(push) / mass[:, None]
+        momentum_l = momentum_l + dt * body_sum(rot.cross(lever, push))
+        contact = dataclasses.replace(contact, force=contact.force + body_sum(push))
         velocity, momentum_l, friction, sliding = self._rub(
-            disc, params, contact, velocity, momentum_l, mass, number, offset_k
+            disc,
+            params,
+            contact,
+            velocity,
+            momentum_l,
+            mass,
+            number,
+            offset_k,
+            inertia_k,
         )
 
         omega_k = jnp.linalg.solve(inertia_k, momentum_l[..., None])[..., 0]
@@ -265,6 +292,7 @@ class RigidBodies(AbstractBodyModel):
         mass: Float[Array, " b"],
         number: Float[Array, " b"],
         offset: Float[Array, "b d"],
+        inertia: Float[Array, "b a a"],
     ) -> tuple[
         Float[Array, "b d"], Float[Array, "b a"], Float[Array, "b d"], Bool[Array, " b"]
     ]:
@@ -279,9 +307,27 @@ class RigidBodies(AbstractBodyModel):
                 jnp.zeros_like(velocity),
                 jnp.zeros(count, bool),
             )
+        if self.friction.torque:
+            # Choice: with the friction torque, the law stops the contact point
+            # (the touching particles' mean), not the centre, and with the
+            # point's effective mass 1/(1/M + (r x t).I^-1 (r x t)). Stopping the
+            # centre of a body that tips about its edge pushed the bottom uphill
+            # and drove the tipping on (a cube toppled at tan(theta) = 0.97).
+            arm = contact.arm - offset
+            omega = jnp.linalg.solve(inertia, momentum_l[..., None])[..., 0]
+            point = velocity + rot.spin_cross(omega, arm)
+            n = contact.normal
+            tangential = point - jnp.sum(point * n, -1, keepdims=True) * n
+            speed = safe_norm(tangential, contact.touching, placeholder=0.0)
+            t = tangential / jnp.where(speed > 0, speed, 1.0)[:, None]
+            c = rot.cross(arm, t)
+            turn = jnp.sum(c * jnp.linalg.solve(inertia, c[..., None])[..., 0], -1)
+            inertial = 1.0 / (1.0 / mass + turn)
+        else:
+            point, inertial = velocity, mass
         impulse, sliding = self.friction(
             contact,
-            velocity,
+            point,
             mass,
             disc.volume * number,
             params.rigid.mu_static,
@@ -289,6 +335,7 @@ class RigidBodies(AbstractBodyModel):
             params,
             disc.spacing,
             disc.dim,
+            inertial_mass=inertial,
         )
         if self.friction.torque:
             momentum_l = momentum_l + rot.cross(contact.arm - offset, impulse)
@@ -299,6 +346,93 @@ class RigidBodies(AbstractBodyModel):
             sliding,
         )
 
+    def _push(
+        self,
+        disc: Discretisation,
+        params: Params,
+        state: State,
+        load: FluidLoad,
+        mass: Float[Array, " b"],
+        rigid_k: Float[Array, "n d"],
+        body_sum: Callable[[Shaped[Array, "n ..."]], Shaped[Array, "b ..."]],
+        outward: Float[Array, "n d"],
+    ) -> Float[Array, "n d"]:
+        """The contact force on each body particle [N], from the walls and from
+        the other bodies (at the predicted positions of the step).
+
+        A body particle i with wall particles within the contact distance gets a
+        surface normal n_i (the mean of those partners' outward normals) and a gap
+        h_i (the least of their distances along n_i), and the force
+            F_i = max(k (l0 - h_i) - c v_n, 0) n_i   where h_i < l0,
+        v_n the normal velocity of i's rigid motion at step k relative to the
+        partners' mean. A particle j of another body closer than l0 pushes along
+        the pair, max(k (l0 - r_ij) - c v_n, 0) n_ij, and is pushed back as much:
+        contact between bodies keeps momentum and angular momentum.
+
+        # Choice: the pressure carries a resting body (its particles sit l0 from the
+        # wall), but a body's edge particles are free-surface particles with P = 0,
+        # so the pressure's centre never reaches the edge a tipping body turns on:
+        # a cube on a slope toppled at tan(theta) = 0.76 (friction torque on). This
+        # force acts at the edge. Against walls it is measured along the surface
+        # normal, not along each pair: pair forces against a wall's particles make
+        # a lattice of bumps that slowed a sliding block by 12-40 %. Between bodies
+        # the pair form stays: it is central, and its bumps are the bodies'
+        # roughness. The stiffness is tied to the step, not to a material:
+        # k = kappa m_c / dt^2 with m_c = M / (the body's particles in contact), so
+        # a body pressed along its whole face oscillates at omega dt = sqrt(kappa),
+        # one on a corner at most sqrt(3 kappa) (kappa = `contact_stiffness` <=
+        # 0.5, the explicit limit being 4); c = 2 zeta sqrt(k m_c) (zeta =
+        # `contact_damping`); between bodies m_c is the pair's reduced value. Under
+        # its weight a body sinks about g dt^2 / kappa into the wall: thousandths of
+        # l0 at the fluid's Courant number.
+        """
+        if self.contact_stiffness == 0:
+            return jnp.zeros_like(state.velocity)
+        pairs = load.pairs
+        dt, l0 = params.dt, disc.spacing
+        member = is_body(state)
+        body = jnp.where(member, state.rigid.body, -1)
+        partner_body = take_rows(body + 1, pairs.index) - 1
+        wall = jnp.logical_and(state.active, state.kind == int(Kind.WALL))
+        near = (
+            pairs.valid
+            & member[:, None]
+            & (pairs.distance < self.contact_distance * l0)
+        )
+        on_wall = near & take_rows(wall, pairs.index)
+        on_body = (
+            near
+            & (partner_body >= 0)
+            & (partner_body != body[:, None])
+            & (pairs.distance < l0)
+        )
+        velocity = jnp.where(member[:, None], rigid_k, state.velocity)
+        normal, gap, v_wall = _surface(on_wall, pairs, outward, velocity, l0)
+        count = body_sum(((gap < l0) | jnp.any(on_body, axis=1)).astype(mass.dtype))
+        share = jnp.where(member, (mass / jnp.maximum(count, 1.0))[body], 0.0)
+        kappa, zeta = self.contact_stiffness, self.contact_damping
+
+        def magnitude(m_c, depth, v_n):
+            spring = kappa * m_c / dt**2 * depth
+            return jnp.maximum(spring - 2 * zeta * jnp.sqrt(kappa) * m_c / dt * v_n, 0)
+
+        v_n = jnp.sum((velocity - v_wall) * normal, axis=-1)
+        push = magnitude(share, l0 - gap, v_n)
+        force = jnp.where((gap < l0)[:, None], push[:, None] * normal, 0.0)
+        # between bodies: along each pair (central, so angular momentum is kept)
+        theirs = take_rows(share, pairs.index)
+        m_c = share[:, None] * theirs / jnp.maximum(share[:, None] + theirs, 1e-300)
+        distance = jnp.where(on_body, pairs.distance, l0)
+        v_n = (
+            -sum(
+                (velocity[:, a, None] - take_rows(velocity[:, a], pairs.index)) * o
+                for a, o in enumerate(pairs.offset)
+            )
+            / distance
+        )
+        push = jnp.where(on_body, magnitude(m_c, l0 - distance, v_n), 0.0)
+        return force + pair_sum(-push / distance, pairs.offset)
+
     def _contact(
         self,
         disc: Discretisation,
@@ -306,6 +440,7 @@ class RigidBodies(AbstractBodyModel):
         load: FluidLoad,
         body_sum: Callable[[Shaped[Array, "n ..."]], Shaped[Array, "b ..."]],
         arm_k: Float[Array, "n d"],
+        outward: Float[Array, "n d"],
     ) -> Contact:
         """Each body's contact with walls from the pairs of the step: the pressure
         force the walls exerted, the contact normal, the touching particles' pressure
@@ -315,9 +450,16 @@ class RigidBodies(AbstractBodyModel):
         wall = jnp.logical_and(state.active, state.kind == int(Kind.WALL))
         partners = pairs.valid & member[:, None] & take_rows(wall, pairs.index)
         near = partners & (pairs.distance < self.contact_distance * disc.spacing)
-        # sum of unit vectors from i towards its near partners j, negated
-        particle_normal = -pair_sum(
-            jnp.where(near, 1.0 / pairs.distance, 0.0), pairs.offset
+        # Choice: the sum of the partners' outward normals. The sum of the unit
+        # vectors from the partners tilts by up to 9 degrees with the body's offset
+        # along the wall's lattice (the same way for every particle of a flat
+        # face), which tilted the friction's tangent plane as a body slid.
+        particle_normal = jnp.stack(
+            [
+                jnp.sum(jnp.where(near, take_rows(outward[:, a], pairs.index), 0.0), 1)
+                for a in range(disc.dim)
+            ],
+            axis=-1,
         )
         particle_force = jnp.where(
             member[:, None], -disc.volume * load.wall_gradient, 0.0
@@ -346,6 +488,63 @@ class RigidBodies(AbstractBodyModel):
 def is_body(state: State) -> Bool[Array, " n"]:
     """Active particles that belong to a rigid body."""
     return jnp.logical_and(state.active, state.rigid.body >= 0)
+
+
+def _mean_over(mask: Bool[Array, "n k"], values: Float[Array, "n k"]):
+    """Mean of `values` over the slots in `mask` (0 where none)."""
+    total = jnp.sum(jnp.where(mask, values, 0.0), axis=1)
+    return total / jnp.maximum(jnp.sum(mask, axis=1), 1)
+
+
+def _solids(state: State) -> Int[Array, " n"]:
+    """Each particle's solid: walls and dummies 0, rigid body b b + 1, else -1."""
+    solid = state.active & (
+        (state.kind == int(Kind.WALL)) | (state.kind == int(Kind.DUMMY))
+    )
+    member = is_body(state)
+    return jnp.where(solid, 0, jnp.where(member, state.rigid.body + 1, -1))
+
+
+def _outward(pairs, group: Int[Array, " n"]) -> Float[Array, "n d"]:
+    """Each particle's outward unit normal from the particles of its own `group`
+    (-1: none): minus the sum of the unit vectors towards them (zero inside a
+    solid, where they cancel). A straight wall's particles all get its normal."""
+    own = (take_rows(group + 1, pairs.index) - 1 == group[:, None]) & (
+        group[:, None] >= 0
+    )
+    inward = pair_sum(
+        jnp.where(own & pairs.valid, 1.0 / pairs.distance, 0.0), pairs.offset
+    )
+    length = safe_norm(inward, jnp.ones(inward.shape[0], bool))
+    return -inward / length[:, None]
+
+
+def _surface(close: Bool[Array, "n k"], pairs, outward, velocity, l0):
+    """The surface that the partners in `close` present to each particle: the
+    mean of their outward normals, the gap along it (2 l0 where none), and the
+    partners' mean velocity."""
+    normal_sum = jnp.stack(
+        [
+            _mean_over(close, take_rows(outward[:, a], pairs.index))
+            for a in range(outward.shape[-1])
+        ],
+        axis=-1,
+    )
+    any_close = jnp.any(close, axis=1)
+    ok = any_close & jnp.any(normal_sum != 0, axis=-1)
+    length = safe_norm(normal_sum, ok)
+    normal = jnp.where(ok[:, None], normal_sum / length[:, None], 0.0)
+    along = -sum(o * normal[:, a, None] for a, o in enumerate(pairs.offset))
+    gap = jnp.min(jnp.where(close, along, 2.0 * l0), axis=1)
+    gap = jnp.where(ok, gap, 2.0 * l0)
+    partner = jnp.stack(
+        [
+            _mean_over(close, take_rows(velocity[:, a], pairs.index))
+            for a in range(velocity.shape[-1])
+        ],
+        axis=-1,
+    )
+    return normal, gap, partner
 
 
 def _world(inertia: Float[Array, "b a a"], rotation, dim: int):

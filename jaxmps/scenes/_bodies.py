@@ -313,6 +313,7 @@ FRICTION_TILT = {
     "mu_static": 0.5,
     "mu_kinetic": None,
     "block_size": 1.0,
+    "block_height": None,
     "density_ratio": 1.5,
     "floor_length": 4.0,
     "spacing": 0.1,
@@ -331,13 +332,17 @@ def _tilted_gravity(dim: int, g: float, degrees: float) -> np.ndarray:
 
 
 def friction_tilt(**overrides) -> Case:
-    """Seed 000 §8.5: a rigid block (`block_size` cube of `density_ratio` x `density`)
-    on a flat floor, the slope emulated by tilting gravity by `angle` degrees
-    (g_x = g sin(angle) down the floor, g_y = -g cos(angle)). It first settles for
+    """Seed 000 §8.5: a rigid block (`block_size` cube of `density_ratio` x `density`,
+    or `block_size` wide and `block_height` tall) on a flat floor, the slope
+    emulated by tilting gravity by `angle` degrees (g_x = g sin(angle) down the
+    floor, g_y = -g cos(angle)). It first settles for
     `settle` s under untilted gravity (run when the case is built) so that the
     contact pressure has built up; the returned state is the settled one at time 0.
     Theory: it stays for tan(angle) <= mu_static and otherwise slides with
-    acceleration g (sin(angle) - mu_kinetic cos(angle)).
+    acceleration g (sin(angle) - mu_kinetic cos(angle)); with `friction_torque`, a
+    block that does not slide tips over its lower edge where tan(angle) exceeds
+    (width - l0) / (height - l0) (its particles' centres span width - l0, and its
+    centre of mass lies (height - l0) / 2 above the bottom row).
 
     The time step defaults to 0.002 s x (spacing / 0.1 m): at 0.005 s (l0 = 0.1 m) the
     contact reaction was measured to chatter by +-17 % from step to step.
@@ -348,6 +353,7 @@ def friction_tilt(**overrides) -> Case:
     c = resolve("friction_tilt", FRICTION_TILT, overrides)
     l0, dim = c["spacing"], int(c["dim"])
     a = whole(c["block_size"], l0)
+    tall = a if c["block_height"] is None else whole(c["block_height"], l0)
     length = whole(c["floor_length"], l0)
     if length < a + 2 * l0:
         raise ValueError("floor_length must exceed block_size by at least 2 spacings.")
@@ -357,9 +363,9 @@ def friction_tilt(**overrides) -> Case:
     across = [a + 4 * l0] if dim == 3 else []
     lower_box = [x0] + ([2 * l0] if dim == 3 else []) + [0.0]
     box = geometry.block(
-        lower_box, [x0 + a] + ([2 * l0 + a] if dim == 3 else []) + [a], l0
+        lower_box, [x0 + a] + ([2 * l0 + a] if dim == 3 else []) + [tall], l0
     )
-    height = 1.2 * a
+    height = 1.2 * tall
     walls, wall_kind = geometry.tank(
         [0.0] * dim, [length] + across + [height], l0, layers=boundary_layers(c)
     )
@@ -370,7 +376,7 @@ def friction_tilt(**overrides) -> Case:
         box,
         walls,
         wall_kind,
-        _domain([0.0] * dim, [length] + across + [height], l0, a),
+        _domain([0.0] * dim, [length] + across + [height], l0, max(a, tall)),
         velocity_scale(a, c["gravity"]),
         None,
     )
@@ -396,7 +402,7 @@ def friction_tilt(**overrides) -> Case:
         BodyValue("friction_x", 0, "friction", 0),
         BodyValue("normal_force", 0, "contact_force", dim - 1),
     )
-    config = {**c, "block_size": a, "floor_length": length}
+    config = {**c, "block_size": a, "block_height": tall, "floor_length": length}
     return Case(
         "friction_tilt", scene, params, state, probes, float(c["t_end"]), config
     )

@@ -211,6 +211,7 @@ RULES = {
     "box_width": _LENGTH,
     "box_height": _LENGTH,
     "block_size": _LENGTH,
+    "block_height": _LENGTH,
     "floor_length": _LENGTH,
     "bed_length": _LENGTH,
     "bottom_width": _LENGTH,
