@@ -285,6 +285,8 @@ def add_rigid_bodies(
     friction: bodies.Coulomb | None = bodies.RigidBodies.friction,
     contact_distance: float = bodies.RigidBodies.contact_distance,
     pressure: str = bodies.RigidBodies.pressure,
+    contact_stiffness: float = bodies.RigidBodies.contact_stiffness,
+    contact_damping: float = bodies.RigidBodies.contact_damping,
 ) -> tuple[Scene, Params, State]:
     """Turn particles of a built case into rigid bodies.
 
@@ -311,6 +313,9 @@ def add_rigid_bodies(
         pressure: how the pressure acts on the bodies, "pairs" (contact and
             friction) or "fluid" (floating bodies at Archimedes' draft); see
             `jaxmps.bodies.RigidBodies`.
+        contact_stiffness, contact_damping: the contact force's stiffness (a
+            fraction of the step's explicit limit; 0 leaves contact to the
+            pressure) and damping ratio; see `jaxmps.bodies.RigidBodies`.
 
     Returns:
         The new (scene, params, state).
@@ -349,6 +354,8 @@ def add_rigid_bodies(
         friction=friction,
         contact_distance=contact_distance,
         pressure=pressure,
+        contact_stiffness=contact_stiffness,
+        contact_damping=contact_damping,
     )
     new_state = dataclasses.replace(
         state,

@@ -143,8 +143,12 @@ class FluidLoad(eqx.Module):
             shape (n, d).
         wall_gradient: the part of `gradient` that wall particles contributed to
             body particles (zero for other particles) [Pa/m], shape (n, d).
+        body_gradient: the part of the pair form that other bodies' particles
+            contributed to body particles (zero for other particles) [Pa/m],
+            shape (n, d), or None for none.
     """
 
     pairs: Pairs
     gradient: Float[Array, "n d"]
     wall_gradient: Float[Array, "n d"]
+    body_gradient: Float[Array, "n d"] | None = None

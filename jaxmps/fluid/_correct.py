@@ -61,7 +61,7 @@ def pressure_force(
     body, so that the forces between two bodies, and between a body and the walls,
     are equal and opposite pair by pair. For every body particle the part of that
     pair form that wall particles exert (the contact reaction, which the friction
-    laws need) is split out pair by pair.
+    laws need) is split out pair by pair, and so is the part other bodies exert.
 
     # Choice: two forms, chosen per body model (`RigidBodies.pressure`), because
     # neither does both jobs. The pair form sums (P_i + P_j) over the pairs across
@@ -79,7 +79,10 @@ def pressure_force(
     applied = gradient(pairs, pressure, disc, include)
     if coupling is None:
         return FluidLoad(
-            pairs=pairs, gradient=applied, wall_gradient=jnp.zeros_like(applied)
+            pairs=pairs,
+            gradient=applied,
+            wall_gradient=jnp.zeros_like(applied),
+            body_gradient=jnp.zeros_like(applied),
         )
     owned = jnp.logical_and(active, coupling.owned)
     external = include & ~coupling.internal(pairs)
@@ -87,11 +90,15 @@ def pressure_force(
     body_form = gradient.momentum_conserving()
     on_body = body_form(pairs, pressure, disc, external)
     from_walls = body_form(pairs, pressure, disc, external, wall)
+    from_bodies = body_form(
+        pairs, pressure, disc, external, take_rows(owned, pairs.index)
+    )
     paired = owned & ~coupling.as_fluid
     return FluidLoad(
         pairs=pairs,
         gradient=jnp.where(paired[:, None], on_body, applied),
         wall_gradient=jnp.where(owned[:, None], from_walls, 0.0),
+        body_gradient=jnp.where(owned[:, None], from_bodies, 0.0),
     )
 
 

@@ -1,10 +1,12 @@
 """Built-in scenes: `jaxmps.scenes.<name>(**overrides) -> Case`."""
 
 from ._bodies import BLOCK_IMPACT as _BLOCK_IMPACT
+from ._bodies import BLOCK_STACK as _BLOCK_STACK
 from ._bodies import DAM_BREAK_BOX as _DAM_BREAK_BOX
 from ._bodies import FLOATING_BOX as _FLOATING_BOX
 from ._bodies import FRICTION_TILT as _FRICTION_TILT
 from ._bodies import block_impact as _block_impact
+from ._bodies import block_stack as _block_stack
 from ._bodies import dam_break_box as _dam_break_box
 from ._bodies import floating_box as _floating_box
 from ._bodies import friction_tilt as _friction_tilt
@@ -66,6 +68,7 @@ from ._wave_tank import wave_tank as _wave_tank
 
 # Every scene takes the porous-region settings (`_porous.SETTINGS`) as well.
 block_impact = accepts_porous(_block_impact)
+block_stack = accepts_porous(_block_stack)
 dam_break = accepts_porous(_dam_break)
 dam_break_box = accepts_porous(_dam_break_box)
 elastic_bar = accepts_porous(_elastic_bar)
@@ -84,6 +87,7 @@ wave_tank = accepts_porous(_wave_tank)
 
 _REGISTRY = {
     "block_impact": (block_impact, _BLOCK_IMPACT),
+    "block_stack": (block_stack, _BLOCK_STACK),
     "friction_tilt": (friction_tilt, _FRICTION_TILT),
     "dam_break": (dam_break, _DAM_BREAK),
     "dam_break_box": (dam_break_box, _DAM_BREAK_BOX),

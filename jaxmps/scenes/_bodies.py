@@ -11,7 +11,7 @@ from .. import geometry
 from .._build import NEIGHBOUR_SKIN, add_elastic_bodies, add_rigid_bodies, make_state
 from .._simulate import simulate
 from .._types import Kind
-from ..bodies import Coulomb
+from ..bodies import ContactPressure, ContactReaction, Coulomb, SubmergedWeight
 from ._case import Case
 from ._common import (
     boundary_layers,
@@ -320,7 +320,16 @@ FRICTION_TILT = {
     "dim": 2,
     "settle": 0.4,
     "friction_torque": False,
+    "friction_normal": "reaction",
+    "water_depth": 0.0,
+    "body_pressure": None,
     "t_end": 1.0,
+}
+
+_NORMALS = {
+    "reaction": ContactReaction,
+    "pressure": ContactPressure,
+    "submerged_weight": SubmergedWeight,
 }
 
 
@@ -347,6 +356,23 @@ def friction_tilt(**overrides) -> Case:
     The time step defaults to 0.002 s x (spacing / 0.1 m): at 0.005 s (l0 = 0.1 m) the
     contact reaction was measured to chatter by +-17 % from step to step.
 
+    `friction_normal` picks the normal force of the Coulomb law: `reaction` (the
+    walls' reaction, default), `pressure` (seed 000: the touching particles'
+    pressure) or `submerged_weight` (seed 002: (M - rho V) g cos(angle)).
+
+    With `water_depth` > 0 the block stands in still water (2-D): the tank is
+    filled to a surface level under the tilted gravity, `water_depth` above the
+    floor at the block's centre, and the settling runs under the tilted gravity
+    with the block held by friction (seed 002 spins up with its blocks frozen).
+    Theory (seed 002 T10): with the submerged weight W = (M - rho V) g as the
+    normal force's scale, the block stays for tan(angle) < mu_static and slides
+    with acceleration (W / M g) g (sin(angle) - mu_kinetic cos(angle)), less the
+    water's added mass and drag, which the formula leaves out. The water acts on
+    the block as on the water it replaces (`body_pressure="fluid"`, the default
+    in water unless `friction_normal="reaction"`, which needs the pair form): with
+    the pair form the tank pushed a block up the slope with 1.5 times its
+    buoyancy's share, and it slid at a fifth of the theory.
+
     Probes: `block_x`, `block_y`, `block_angle`, `block_velocity_x`, `friction_x`,
     `normal_force` (contact force along the floor normal).
     """
@@ -366,13 +392,49 @@ def friction_tilt(**overrides) -> Case:
         lower_box, [x0 + a] + ([2 * l0 + a] if dim == 3 else []) + [tall], l0
     )
     height = 1.2 * tall
+    if c["friction_normal"] not in _NORMALS:
+        raise ValueError(
+            f"friction_normal={c['friction_normal']!r} is not a normal force; "
+            f"valid: {', '.join(_NORMALS)}."
+        )
+    fluid = np.zeros((0, dim))
+    slope = math.tan(math.radians(float(c["angle"])))
+    depth = float(c["water_depth"])
+    if depth > 0:
+        if dim != 2:
+            raise ValueError("water_depth is for the 2-D friction_tilt (dim=2).")
+        if depth < tall:
+            raise ValueError(
+                f"water_depth={depth} must cover the block (block height {tall})."
+            )
+        centre = x0 + a / 2
+        top = depth + slope * (length - centre)
+        if depth - slope * centre < l0:
+            raise ValueError(
+                "the water's surface under the tilted gravity meets the floor "
+                "inside the tank: raise water_depth or lower angle."
+            )
+        height = top + 0.2 * tall
+        grid = geometry.block([0.0, 0.0], [length, top], l0)
+        outside = (grid[:, 0] < x0) | (grid[:, 0] > x0 + a) | (grid[:, 1] > tall)
+        below = grid[:, 1] < depth + slope * (grid[:, 0] - centre)
+        fluid = grid[outside & below]
     walls, wall_kind = geometry.tank(
         [0.0] * dim, [length] + across + [height], l0, layers=boundary_layers(c)
     )
-    friction = Coulomb(torque=bool(c["friction_torque"]))
+    friction = Coulomb(
+        normal=_NORMALS[c["friction_normal"]](), torque=bool(c["friction_torque"])
+    )
+    if c["body_pressure"] is None:
+        wet = depth > 0 and c["friction_normal"] != "reaction"
+        c = {**c, "body_pressure": "fluid" if wet else "pairs"}
+    if c["body_pressure"] not in ("fluid", "pairs"):
+        raise ValueError(
+            f"body_pressure must be 'fluid' or 'pairs', got {c['body_pressure']!r}."
+        )
     scene, params, state = _body_case(
-        {**c, "friction": friction},
-        np.zeros((0, dim)),
+        {**c, "friction": friction, "pressure": c["body_pressure"]},
+        fluid,
         box,
         walls,
         wall_kind,
@@ -380,20 +442,25 @@ def friction_tilt(**overrides) -> Case:
         velocity_scale(a, c["gravity"]),
         None,
     )
+    tilted = jnp.asarray(
+        _tilted_gravity(dim, c["gravity"], float(c["angle"])), params.gravity.dtype
+    )
     if c["settle"] > 0:
-        state = simulate(scene, params, state, times=[c["settle"]]).state
+        spin_up = params
+        if depth > 0:
+            held = jnp.full_like(params.rigid.mu_static, 1e3)
+            spin_up = eqx.tree_at(
+                lambda p: (p.gravity, p.rigid.mu_static, p.rigid.mu_kinetic),
+                params,
+                (tilted, held, held),
+            )
+        state = simulate(scene, spin_up, state, times=[c["settle"]]).state
         state = eqx.tree_at(
             lambda s: (s.time, s.step),
             state,
             (jnp.zeros_like(state.time), jnp.zeros_like(state.step)),
         )
-    params = eqx.tree_at(
-        lambda p: p.gravity,
-        params,
-        jnp.asarray(
-            _tilted_gravity(dim, c["gravity"], float(c["angle"])), params.gravity.dtype
-        ),
-    )
+    params = eqx.tree_at(lambda p: p.gravity, params, tilted)
     probes = (
         BodyValue("block_x", 0, "centre", 0),
         BodyValue("block_y", 0, "centre", dim - 1),
@@ -406,6 +473,161 @@ def friction_tilt(**overrides) -> Case:
     return Case(
         "friction_tilt", scene, params, state, probes, float(c["t_end"]), config
     )
+
+
+BLOCK_STACK = {
+    "layout": "stack",
+    "blocks": 2,
+    "block_size": 0.5,
+    "block_height": None,
+    "base_width": None,
+    "gap": 0.0,
+    "angle": 0.0,
+    "mu_static": 0.6,
+    "mu_kinetic": None,
+    "density_ratio": 2.0,
+    "floor_length": 3.0,
+    "water_depth": 0.0,
+    "friction_torque": True,
+    "spacing": 0.05,
+    "dim": 2,
+    "settle": 0.3,
+    "t_end": 1.0,
+}
+
+
+def block_stack(**overrides) -> Case:
+    """Seed 002's blocks: `blocks` rigid blocks (`block_size` wide, `block_height`
+    tall, `density_ratio` x `density`) stacked on each other (`layout="stack"`,
+    the lowest `base_width` wide, the others centred on it) or
+    side by side along the slope with `gap` between them (`layout="row"`), on a
+    flat floor whose slope is emulated by tilting gravity by `angle` degrees, as
+    in `friction_tilt`; in still water with `water_depth` > 0 (2-D).
+
+    Each block has the friction coefficients `mu_static`, `mu_kinetic` against
+    walls (`Params.rigid.mu_static` per block) and the smaller of two blocks'
+    values between them. The blocks first settle for `settle` s under the tilted
+    gravity held by friction (seed 002 spins up with its blocks frozen).
+    Theory: a stacked block slides on the one below where tan(angle) exceeds
+    their coefficient, with acceleration g (sin - mu_k cos) (dry), and no block
+    tips before tan(angle) = (width - l0) / (height - l0) of the stack above its
+    edge. Probes per block k: `block{k}_x`, `block{k}_y`, `block{k}_angle`.
+    """
+    c = resolve("block_stack", BLOCK_STACK, overrides)
+    l0, dim = c["spacing"], int(c["dim"])
+    if dim != 2:
+        raise ValueError("block_stack is 2-D (dim=2).")
+    if c["layout"] not in ("stack", "row"):
+        raise ValueError(f"layout must be 'stack' or 'row', got {c['layout']!r}.")
+    count = int(c["blocks"])
+    a = whole(c["block_size"], l0)
+    tall = a if c["block_height"] is None else whole(c["block_height"], l0)
+    gap = whole(c["gap"], l0) if c["gap"] > 0 else 0.0
+    length = whole(c["floor_length"], l0)
+    x0 = whole(min(0.5, 0.1 * length), l0)
+    base = a if c["base_width"] is None else whole(c["base_width"], l0)
+    widths = [a] * count
+    if c["layout"] == "stack":
+        widths[0] = base
+        shift = whole(max(base - a, 0.0) / 2, l0)
+        corners = [(x0 + (shift if k else 0.0), k * tall) for k in range(count)]
+        top, right = count * tall, x0 + max(base, a + shift)
+    else:
+        corners = [(x0 + k * (a + gap), 0.0) for k in range(count)]
+        top, right = tall, x0 + count * a + (count - 1) * gap
+    if length < right + 2 * l0:
+        raise ValueError(
+            f"floor_length={length} is too short for the blocks (they reach "
+            f"{right:g} m): raise floor_length."
+        )
+    blocks = [
+        geometry.block([x, y], [x + w, y + tall], l0)
+        for (x, y), w in zip(corners, widths)
+    ]
+    box = np.concatenate(blocks)
+    body = np.concatenate([np.full(len(b), k) for k, b in enumerate(blocks)])
+    slope = math.tan(math.radians(float(c["angle"])))
+    depth = float(c["water_depth"])
+    height = 1.2 * top
+    fluid = np.zeros((0, dim))
+    if depth > 0:
+        if depth < top:
+            raise ValueError(
+                f"water_depth={depth} must cover the blocks (they reach {top:g} m)."
+            )
+        centre = (x0 + right) / 2
+        surface = depth + slope * (length - centre)
+        if depth - slope * centre < l0:
+            raise ValueError(
+                "the water's surface under the tilted gravity meets the floor "
+                "inside the tank: raise water_depth or lower angle."
+            )
+        height = surface + 0.2 * top
+        grid = geometry.block([0.0, 0.0], [length, surface], l0)
+        near = np.min(
+            np.linalg.norm(grid[:, None, :] - box[None, :, :], axis=-1), axis=1
+        )
+        below = grid[:, 1] < depth + slope * (grid[:, 0] - centre)
+        fluid = grid[(near > 0.5 * l0) & below]
+    walls, wall_kind = geometry.tank(
+        [0.0, 0.0], [length, height], l0, layers=boundary_layers(c)
+    )
+    position = np.concatenate([fluid, box, walls])
+    kind = np.concatenate(
+        [
+            np.full(len(fluid) + len(box), int(Kind.FLUID), np.int32),
+            wall_kind,
+        ]
+    )
+    owner = np.concatenate([np.full(len(fluid), -1), body, np.full(len(walls), -1)])
+    scene = _body_scene(
+        c, position, _domain([0.0, 0.0], [length, height], l0, top), kind
+    )
+    params = case_params(c, dim, velocity_scale(top, c["gravity"]))
+    state = make_state(scene, position, kind)
+    scene, params, state = add_rigid_bodies(
+        scene,
+        params,
+        state,
+        owner,
+        density=c["density"] * c["density_ratio"],
+        mu_static=c["mu_static"],
+        mu_kinetic=c["mu_kinetic"],
+        friction=Coulomb(torque=bool(c["friction_torque"])),
+        pressure="pairs",
+    )
+    tilted = jnp.asarray(
+        _tilted_gravity(dim, c["gravity"], float(c["angle"])), params.gravity.dtype
+    )
+    params = eqx.tree_at(lambda p: p.gravity, params, tilted)
+    if c["settle"] > 0:
+        held = jnp.full_like(params.rigid.mu_static, 1e3)
+        spin_up = eqx.tree_at(
+            lambda p: (p.rigid.mu_static, p.rigid.mu_kinetic), params, (held, held)
+        )
+        state = simulate(scene, spin_up, state, times=[c["settle"]]).state
+        state = eqx.tree_at(
+            lambda s: (s.time, s.step),
+            state,
+            (jnp.zeros_like(state.time), jnp.zeros_like(state.step)),
+        )
+    probes = tuple(
+        probe
+        for k in range(count)
+        for probe in (
+            BodyValue(f"block{k}_x", k, "centre", 0),
+            BodyValue(f"block{k}_y", k, "centre", 1),
+            BodyValue(f"block{k}_angle", k, "angle"),
+        )
+    )
+    config = {
+        **c,
+        "block_size": a,
+        "block_height": tall,
+        "base_width": base,
+        "floor_length": length,
+    }
+    return Case("block_stack", scene, params, state, probes, float(c["t_end"]), config)
 
 
 BLOCK_IMPACT = {

@@ -212,6 +212,8 @@ RULES = {
     "box_height": _LENGTH,
     "block_size": _LENGTH,
     "block_height": _LENGTH,
+    "base_width": _LENGTH,
+    "water_depth": _OFFSET,
     "floor_length": _LENGTH,
     "bed_length": _LENGTH,
     "bottom_width": _LENGTH,
@@ -246,6 +248,7 @@ RULES = {
     "velocity": _FINITE,  # signed: towards the floor when positive
     "pool": Range(0, 2**31 - 1),
     "substeps": _COUNT,
+    "blocks": Range(1, 64),
     # ratios and coefficients
     "density_ratio": _POSITIVE,
     "mu_static": _NON_NEGATIVE,
@@ -303,6 +306,7 @@ _WHOLE = (
     "substeps",
     "contact_capacity",
     "seed",
+    "blocks",
 )
 
 
