@@ -310,7 +310,8 @@ def test_block_on_block_sticks_below_and_slides_above_their_coefficient():
     two blocks' values) the top block stays (tan = 0.91 mu); with mu = 0.3 it
     slides over the base with g (sin - mu cos): within 10 % over the first
     0.2 s. (Later the lattice roughness of the central contact between the two
-    blocks slows it: 0.77 of the distance at 0.5 s.) The base stays put."""
+    blocks slows it: 0.77 of the distance at 0.5 s.) The base stays put, and
+    both blocks keep their shapes (T9)."""
     case = jaxmps.scenes.block_stack(
         base_width=2.0, block_height=0.25, dt=0.001, angle=math.degrees(math.atan(0.6))
     )
@@ -330,6 +331,14 @@ def test_block_on_block_sticks_below_and_slides_above_their_coefficient():
     assert np.all(np.abs(base) < 1e-3), base
     assert abs(top[0]) < 1e-3, top[0]
     np.testing.assert_allclose(top[1], theory, rtol=0.10)
+    # seed 002 T9: the blocks stay rigid through contact and friction
+    body = np.asarray(case.state.rigid.body)
+    for k in (0, 1):
+        x0 = np.asarray(case.state.position)[body == k]
+        x1 = np.asarray(out.state.position)[1][body == k]
+        d0 = np.linalg.norm(x0[:, None] - x0[None], axis=-1)
+        d1 = np.linalg.norm(x1[:, None] - x1[None], axis=-1)
+        np.testing.assert_allclose(d1, d0, rtol=0, atol=1e-10 * d0.max())
 
 
 def test_block_in_still_water_sticks_and_slides_with_its_submerged_weight():

@@ -317,7 +317,13 @@ def test_body_scenes_build_and_list():
     """Every body scene is listed, builds, and takes a few steps; a scene may change
     a common default (block_impact has no gravity); unknown parameters are refused."""
     names = jaxmps.scenes.available()
-    for name in ("floating_box", "friction_tilt", "block_impact", "dam_break_box"):
+    for name in (
+        "floating_box",
+        "friction_tilt",
+        "block_impact",
+        "dam_break_box",
+        "block_stack",
+    ):
         assert name in names
     assert names["block_impact"]["gravity"] == 0.0
     case = jaxmps.scenes.build("dam_break_box", spacing=0.0146)
@@ -332,6 +338,18 @@ def test_body_scenes_build_and_list():
         jaxmps.scenes.floating_box(centre_of_gravity=0.3)
     with pytest.raises(ValueError, match="gyration must be"):
         jaxmps.scenes.floating_box(gyration=-0.1)
+    with pytest.raises(ValueError, match="layout must be"):
+        jaxmps.scenes.block_stack(layout="pile")
+    with pytest.raises(ValueError, match="raise floor_length"):
+        jaxmps.scenes.block_stack(layout="row", blocks=8, floor_length=2.0)
+    with pytest.raises(ValueError, match="must cover the blocks"):
+        jaxmps.scenes.block_stack(water_depth=0.5)
+    with pytest.raises(ValueError, match="raise water_depth or lower angle"):
+        jaxmps.scenes.friction_tilt(water_depth=1.0, angle=50.0)
+    with pytest.raises(ValueError, match="friction_normal"):
+        jaxmps.scenes.friction_tilt(friction_normal="weight")
+    with pytest.raises(ValueError, match="blocks"):
+        jaxmps.scenes.block_stack(blocks=0)
 
 
 def test_restart_with_bodies_is_bit_exact(tmp_path):

@@ -414,6 +414,7 @@ def friction_tilt(**overrides) -> Case:
                 "the water's surface under the tilted gravity meets the floor "
                 "inside the tank: raise water_depth or lower angle."
             )
+        top = math.ceil(top / l0 - 1e-9) * l0
         height = top + 0.2 * tall
         grid = geometry.block([0.0, 0.0], [length, top], l0)
         outside = (grid[:, 0] < x0) | (grid[:, 0] > x0 + a) | (grid[:, 1] > tall)
@@ -562,6 +563,7 @@ def block_stack(**overrides) -> Case:
                 "the water's surface under the tilted gravity meets the floor "
                 "inside the tank: raise water_depth or lower angle."
             )
+        surface = math.ceil(surface / l0 - 1e-9) * l0
         height = surface + 0.2 * top
         grid = geometry.block([0.0, 0.0], [length, surface], l0)
         near = np.min(
