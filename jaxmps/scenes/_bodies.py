@@ -322,7 +322,7 @@ FRICTION_TILT = {
     "friction_torque": False,
     "friction_normal": "reaction",
     "water_depth": 0.0,
-    "body_pressure": None,
+    "body_pressure": "auto",
     "t_end": 1.0,
 }
 
@@ -368,8 +368,9 @@ def friction_tilt(**overrides) -> Case:
     normal force's scale, the block stays for tan(angle) < mu_static and slides
     with acceleration (W / M g) g (sin(angle) - mu_kinetic cos(angle)), less the
     water's added mass and drag, which the formula leaves out. The water acts on
-    the block as on the water it replaces (`body_pressure="fluid"`, the default
-    in water unless `friction_normal="reaction"`, which needs the pair form): with
+    the block as on the water it replaces (`body_pressure="fluid"`, what `auto`
+    takes in water unless `friction_normal="reaction"`, which needs the pair
+    form; `pairs` otherwise): with
     the pair form the tank pushed a block up the slope with 1.5 times its
     buoyancy's share, and it slid at a fifth of the theory.
 
@@ -426,13 +427,14 @@ def friction_tilt(**overrides) -> Case:
     friction = Coulomb(
         normal=_NORMALS[c["friction_normal"]](), torque=bool(c["friction_torque"])
     )
-    if c["body_pressure"] is None:
+    if c["body_pressure"] not in ("auto", "fluid", "pairs"):
+        raise ValueError(
+            "body_pressure must be 'auto', 'fluid' or 'pairs', got "
+            f"{c['body_pressure']!r}."
+        )
+    if c["body_pressure"] == "auto":
         wet = depth > 0 and c["friction_normal"] != "reaction"
         c = {**c, "body_pressure": "fluid" if wet else "pairs"}
-    if c["body_pressure"] not in ("fluid", "pairs"):
-        raise ValueError(
-            f"body_pressure must be 'fluid' or 'pairs', got {c['body_pressure']!r}."
-        )
     scene, params, state = _body_case(
         {**c, "friction": friction, "pressure": c["body_pressure"]},
         fluid,
