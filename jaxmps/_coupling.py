@@ -48,6 +48,9 @@ class Coupling(eqx.Module):
             fluid through drag and lift alone and act on it through nothing):
             every pair with one of them weighs nothing in the fluid stages
             (`visible`); None: none, shape (n,).
+        between_bodies: whether the pressure stage splits out the part of the
+            pair form that other bodies exert (`FluidLoad.body_gradient`, which
+            friction between bodies needs); static.
     """
 
     density: Float[Array, " n"]
@@ -55,6 +58,7 @@ class Coupling(eqx.Module):
     as_fluid: Bool[Array, " n"]
     reference_density: Float[Array, " n"] | None = None
     hidden: Bool[Array, " n"] | None = None
+    between_bodies: bool = eqx.field(static=True, default=False)
 
     @property
     def owned(self) -> Bool[Array, " n"]:

@@ -218,6 +218,7 @@ def _coupling(scene: Scene, params: Params, state: State) -> Coupling | None:
             as_fluid=jnp.where(part.owned, part.as_fluid, merged.as_fluid),
             reference_density=_merged_reference(merged, part),
             hidden=_merged_hidden(merged, part),
+            between_bodies=merged.between_bodies or part.between_bodies,
         )
     return merged
 

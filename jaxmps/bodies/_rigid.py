@@ -155,6 +155,7 @@ class RigidBodies(AbstractBodyModel):
             density=jnp.where(body >= 0, rho, params.density),
             owner=body,
             as_fluid=(body >= 0) & (self.pressure == "fluid"),
+            between_bodies=self.count > 1 and self.friction is not None,
         )
 
     def advance(
@@ -432,6 +433,8 @@ class RigidBodies(AbstractBodyModel):
         # between bodies: along each pair closer than l0 (central), once per
         # contact (from the body of lower index), the partner pushed back
         pressed = near & (partner_body > body[:, None]) & (pairs.distance < l0)
+        if self.count < 2:  # no pair of bodies: nothing to compute
+            pressed = jnp.zeros_like(near)
         velocity = jnp.where(member[:, None], rigid_k, state.velocity)
         normal, gap, v_wall = _surface(on_wall, pairs, outward, velocity, l0)
         count = body_sum(
@@ -449,6 +452,9 @@ class RigidBodies(AbstractBodyModel):
         v_n = jnp.sum((velocity - v_wall) * normal, axis=-1)
         push = magnitude(share, l0 - gap, v_n)
         force = jnp.where((gap < l0)[:, None], push[:, None] * normal, 0.0)
+        if self.count < 2:
+            zero = jnp.zeros_like(force)
+            return force, zero, Exchange(zero, jnp.zeros_like(rot.cross(zero, zero)))
         theirs = take_rows(share, pairs.index)
         m_c = share[:, None] * theirs / jnp.maximum(share[:, None] + theirs, 1e-300)
         distance = jnp.where(pressed, pairs.distance, l0)

@@ -90,15 +90,18 @@ def pressure_force(
     body_form = gradient.momentum_conserving()
     on_body = body_form(pairs, pressure, disc, external)
     from_walls = body_form(pairs, pressure, disc, external, wall)
-    from_bodies = body_form(
-        pairs, pressure, disc, external, take_rows(owned, pairs.index)
-    )
+    between = None
+    if coupling.between_bodies:
+        from_bodies = body_form(
+            pairs, pressure, disc, external, take_rows(owned, pairs.index)
+        )
+        between = jnp.where(owned[:, None], from_bodies, 0.0)
     paired = owned & ~coupling.as_fluid
     return FluidLoad(
         pairs=pairs,
         gradient=jnp.where(paired[:, None], on_body, applied),
         wall_gradient=jnp.where(owned[:, None], from_walls, 0.0),
-        body_gradient=jnp.where(owned[:, None], from_bodies, 0.0),
+        body_gradient=between,
     )
 
 
