@@ -209,43 +209,15 @@ class RigidBodies(AbstractBodyModel):
             rot.cross(lever, change - dt * params.gravity[None, :])
         )
 
-        outward = _outward(load.pairs, _solids(state))
-        contact = self._contact(disc, state, load, body_sum, arm_k, outward)
-        from_wall, from_bodies, exchange = self._push(
-            disc, params, state, load, mass, rigid_k, body_sum, outward
-        )
-        push = from_wall + exchange.total
-        velocity = velocity + dt * body_sum(push) / mass[:, None]
-        momentum_l = momentum_l + dt * body_sum(
-            rot.cross(lever, push) + exchange.moment
-        )
-        contact = dataclasses.replace(
-            contact, force=contact.force + body_sum(from_wall)
-        )
-        velocity, momentum_l, friction, sliding = self._rub(
-            disc,
-            params,
-            contact,
-            velocity,
-            momentum_l,
-            mass,
-            number,
-            offset_k,
-            inertia_k,
-        )
-        velocity, momentum_l = self._rub_bodies(
+        velocity, momentum_l, contact, friction, sliding = self._touch(
             disc,
             params,
             state,
             load,
-            velocity,
-            momentum_l,
-            mass,
-            lever,
-            inertia_k,
-            from_bodies,
-            outward,
             body_sum,
+            (arm_k, rigid_k, lever),
+            (velocity, momentum_l),
+            (mass, number, offset_k, inertia_k),
         )
 
         omega_k = jnp.linalg.solve(inertia_k, momentum_l[..., None])[..., 0]
@@ -284,6 +256,58 @@ class RigidBodies(AbstractBodyModel):
             velocity=jnp.where(member[:, None], particle_velocity, state.velocity),
             rigid=rigid,
         )
+
+    def _touch(self, disc, params, state, load, body_sum, particles, motion, bodies):
+        """Contact and friction: the contact force (walls, other bodies), then
+        friction against walls, then between bodies. `particles` = (arm, rigid
+        velocity at step k, lever about the centre of mass) per particle,
+        `motion` = (centre-of-mass velocity, angular momentum) per body after the
+        fluid, `bodies` = (mass, particle count, centre-of-mass offset, world
+        inertia). Returns the motion after them, the wall contact, the wall
+        friction force and whether each body slides."""
+        arm_k, rigid_k, lever = particles
+        velocity, momentum_l = motion
+        mass, number, offset_k, inertia_k = bodies
+        dt = params.dt
+        outward = _outward(load.pairs, _solids(state))
+        contact = self._contact(disc, state, load, body_sum, arm_k, outward)
+        from_wall, from_bodies, exchange = self._push(
+            disc, params, state, load, mass, rigid_k, body_sum, outward
+        )
+        push = from_wall + exchange.total
+        velocity = velocity + dt * body_sum(push) / mass[:, None]
+        momentum_l = momentum_l + dt * body_sum(
+            rot.cross(lever, push) + exchange.moment
+        )
+        contact = dataclasses.replace(
+            contact, force=contact.force + body_sum(from_wall)
+        )
+        velocity, momentum_l, friction, sliding = self._rub(
+            disc,
+            params,
+            contact,
+            velocity,
+            momentum_l,
+            mass,
+            number,
+            offset_k,
+            inertia_k,
+        )
+        velocity, momentum_l = self._rub_bodies(
+            disc,
+            params,
+            state,
+            load,
+            velocity,
+            momentum_l,
+            mass,
+            lever,
+            inertia_k,
+            from_bodies,
+            outward,
+            body_sum,
+        )
+        return velocity, momentum_l, contact, friction, sliding
 
     def _offset(self, params: Params, centre: Float[Array, "b d"]):
         """Each body's centre of mass from its particles' centroid, body frame."""

@@ -340,6 +340,47 @@ def _tilted_gravity(dim: int, g: float, degrees: float) -> np.ndarray:
     return out
 
 
+def _tilted_water(c, solids, length, what, top):
+    """Still water over a floor [0, length] under gravity tilted by `angle`: the
+    lattice points below a level surface `water_depth` above the floor at the
+    middle of `solids` (the bodies' particles, which the water keeps l0 from),
+    and the tank height that holds it. `top`: the bodies' height."""
+    l0, depth = c["spacing"], float(c["water_depth"])
+    if depth < top:
+        raise ValueError(f"water_depth={depth} must cover {what} (height {top:g} m).")
+    slope = math.tan(math.radians(float(c["angle"])))
+    centre = (solids[:, 0].min() + solids[:, 0].max()) / 2
+    if depth - slope * centre < l0:
+        raise ValueError(
+            "the water's surface under the tilted gravity meets the floor "
+            "inside the tank: raise water_depth or lower angle."
+        )
+    surface = math.ceil((depth + slope * (length - centre)) / l0 - 1e-9) * l0
+    grid = geometry.block([0.0, 0.0], [length, surface], l0)
+    near = np.min(np.linalg.norm(grid[:, None] - solids[None], axis=-1), axis=1)
+    below = grid[:, 1] < depth + slope * (grid[:, 0] - centre)
+    return grid[(near > 0.5 * l0) & below], surface + 0.2 * top
+
+
+def _spun_up(scene, params, state, duration, gravity=None):
+    """The state after `duration` s of settling, its clock set back to 0. With
+    `gravity`, under that gravity and with the bodies held by friction (seed 002
+    spins up with its blocks frozen); otherwise under `params` as they are."""
+    if gravity is not None:
+        held = jnp.full_like(params.rigid.mu_static, 1e3)
+        params = eqx.tree_at(
+            lambda p: (p.gravity, p.rigid.mu_static, p.rigid.mu_kinetic),
+            params,
+            (gravity, held, held),
+        )
+    state = simulate(scene, params, state, times=[duration]).state
+    return eqx.tree_at(
+        lambda s: (s.time, s.step),
+        state,
+        (jnp.zeros_like(state.time), jnp.zeros_like(state.step)),
+    )
+
+
 def friction_tilt(**overrides) -> Case:
     """Seed 000 §8.5: a rigid block (`block_size` cube of `density_ratio` x `density`,
     or `block_size` wide and `block_height` tall) on a flat floor, the slope
@@ -399,28 +440,11 @@ def friction_tilt(**overrides) -> Case:
             f"valid: {', '.join(_NORMALS)}."
         )
     fluid = np.zeros((0, dim))
-    slope = math.tan(math.radians(float(c["angle"])))
     depth = float(c["water_depth"])
     if depth > 0:
         if dim != 2:
             raise ValueError("water_depth is for the 2-D friction_tilt (dim=2).")
-        if depth < tall:
-            raise ValueError(
-                f"water_depth={depth} must cover the block (block height {tall})."
-            )
-        centre = x0 + a / 2
-        top = depth + slope * (length - centre)
-        if depth - slope * centre < l0:
-            raise ValueError(
-                "the water's surface under the tilted gravity meets the floor "
-                "inside the tank: raise water_depth or lower angle."
-            )
-        top = math.ceil(top / l0 - 1e-9) * l0
-        height = top + 0.2 * tall
-        grid = geometry.block([0.0, 0.0], [length, top], l0)
-        outside = (grid[:, 0] < x0) | (grid[:, 0] > x0 + a) | (grid[:, 1] > tall)
-        below = grid[:, 1] < depth + slope * (grid[:, 0] - centre)
-        fluid = grid[outside & below]
+        fluid, height = _tilted_water(c, box, length, "the block", tall)
     walls, wall_kind = geometry.tank(
         [0.0] * dim, [length] + across + [height], l0, layers=boundary_layers(c)
     )
@@ -449,20 +473,10 @@ def friction_tilt(**overrides) -> Case:
         _tilted_gravity(dim, c["gravity"], float(c["angle"])), params.gravity.dtype
     )
     if c["settle"] > 0:
-        spin_up = params
-        if depth > 0:
-            held = jnp.full_like(params.rigid.mu_static, 1e3)
-            spin_up = eqx.tree_at(
-                lambda p: (p.gravity, p.rigid.mu_static, p.rigid.mu_kinetic),
-                params,
-                (tilted, held, held),
-            )
-        state = simulate(scene, spin_up, state, times=[c["settle"]]).state
-        state = eqx.tree_at(
-            lambda s: (s.time, s.step),
-            state,
-            (jnp.zeros_like(state.time), jnp.zeros_like(state.step)),
-        )
+        if depth > 0:  # held by friction under the tilted gravity
+            state = _spun_up(scene, params, state, c["settle"], tilted)
+        else:
+            state = _spun_up(scene, params, state, c["settle"])
     params = eqx.tree_at(lambda p: p.gravity, params, tilted)
     probes = (
         BodyValue("block_x", 0, "centre", 0),
@@ -549,30 +563,10 @@ def block_stack(**overrides) -> Case:
     ]
     box = np.concatenate(blocks)
     body = np.concatenate([np.full(len(b), k) for k, b in enumerate(blocks)])
-    slope = math.tan(math.radians(float(c["angle"])))
-    depth = float(c["water_depth"])
     height = 1.2 * top
     fluid = np.zeros((0, dim))
-    if depth > 0:
-        if depth < top:
-            raise ValueError(
-                f"water_depth={depth} must cover the blocks (they reach {top:g} m)."
-            )
-        centre = (x0 + right) / 2
-        surface = depth + slope * (length - centre)
-        if depth - slope * centre < l0:
-            raise ValueError(
-                "the water's surface under the tilted gravity meets the floor "
-                "inside the tank: raise water_depth or lower angle."
-            )
-        surface = math.ceil(surface / l0 - 1e-9) * l0
-        height = surface + 0.2 * top
-        grid = geometry.block([0.0, 0.0], [length, surface], l0)
-        near = np.min(
-            np.linalg.norm(grid[:, None, :] - box[None, :, :], axis=-1), axis=1
-        )
-        below = grid[:, 1] < depth + slope * (grid[:, 0] - centre)
-        fluid = grid[(near > 0.5 * l0) & below]
+    if c["water_depth"] > 0:
+        fluid, height = _tilted_water(c, box, length, "the blocks", top)
     walls, wall_kind = geometry.tank(
         [0.0, 0.0], [length, height], l0, layers=boundary_layers(c)
     )
@@ -605,16 +599,7 @@ def block_stack(**overrides) -> Case:
     )
     params = eqx.tree_at(lambda p: p.gravity, params, tilted)
     if c["settle"] > 0:
-        held = jnp.full_like(params.rigid.mu_static, 1e3)
-        spin_up = eqx.tree_at(
-            lambda p: (p.rigid.mu_static, p.rigid.mu_kinetic), params, (held, held)
-        )
-        state = simulate(scene, spin_up, state, times=[c["settle"]]).state
-        state = eqx.tree_at(
-            lambda s: (s.time, s.step),
-            state,
-            (jnp.zeros_like(state.time), jnp.zeros_like(state.step)),
-        )
+        state = _spun_up(scene, params, state, c["settle"], tilted)
     probes = tuple(
         probe
         for k in range(count)
