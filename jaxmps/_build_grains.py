@@ -133,29 +133,11 @@ def add_grains(
         )
     grain_params = _grain_params(params, values)
     _refuse_overlaps(position[index], sizes)
-    if submerged and sizes.max() > scene.r_e:
-        raise ValueError(
-            f"A grain of {sizes.max():g} m is larger than the fluid's influence "
-            f"radius r_e = {scene.r_e:g} m: the drag takes the fluid velocity around "
-            "a grain from its neighbours within r_e, a point-particle model. Give "
-            "grains at most r_e across (`diameter`, scene setting `grain_diameter`), "
-            "or a coarser fluid (a larger `spacing`)."
-        )
-    # Choice: grains touch every solid particle that is not a grain (walls, and
-    # rigid and elastic bodies as spheres of l0 moving with them), and the
-    # bodies do not feel them: seed 002's detached grains "do not affect the
-    # fluid or the rigid bodies".
-    solid = (Kind.WALL, Kind.RIGID, Kind.ELASTIC)
-    walls = np.nonzero(active & np.isin(kind, [int(k) for k in solid]))[0]
-    skin = 2.0 * courant * l0
-    reach = 0.5 * (sizes.max() + max(sizes.max(), l0))
-    radius = float(reach + skin)
-    grid = _grid(position[active], _domain(scene), radius, 1)
-    dem = np.concatenate([position[index], position[walls]])
-    if candidate_capacity is None:
-        most = int(candidate_counts(grid, dem).max())
-        candidate_capacity = max(4, math.ceil(CANDIDATE_MARGIN * most))
-    grid = eqx.tree_at(lambda g: g.candidate_capacity, grid, int(candidate_capacity))
+    if submerged:
+        _refuse_large(sizes, scene.r_e)
+    walls, grid, radius = _contact_search(
+        scene, position, active, kind, index, sizes, courant, candidate_capacity
+    )
     k = CONTACT_CAPACITY[dim] if contact_capacity is None else int(contact_capacity)
     mass = (
         float(grain_params.density) - (float(params.density) if submerged else 0.0)
@@ -193,6 +175,42 @@ def add_grains(
     )
     model.check(new_params, new_state)
     return dataclasses.replace(scene, grains=model), new_params, new_state
+
+
+def _refuse_large(sizes: np.ndarray, r_e: float) -> None:
+    """Grains in water must be at most r_e across (ValueError)."""
+    if sizes.max() > r_e:
+        raise ValueError(
+            f"A grain of {sizes.max():g} m is larger than the fluid's influence "
+            f"radius r_e = {r_e:g} m: the drag takes the fluid velocity around "
+            "a grain from its neighbours within r_e, a point-particle model. Give "
+            "grains at most r_e across (`diameter`, scene setting `grain_diameter`), "
+            "or a coarser fluid (a larger `spacing`)."
+        )
+
+
+def _contact_search(
+    scene, position, active, kind, index, sizes, courant, candidate_capacity
+):
+    """The grains' contact partners that are not grains (slots), their search
+    grid (with its candidate capacity) and search radius."""
+    l0 = scene.spacing
+    # Choice: grains touch every solid particle that is not a grain (walls, and
+    # rigid and elastic bodies as spheres of l0 moving with them), and the
+    # bodies do not feel them: seed 002's detached grains "do not affect the
+    # fluid or the rigid bodies".
+    solid = (Kind.WALL, Kind.RIGID, Kind.ELASTIC)
+    walls = np.nonzero(active & np.isin(kind, [int(k) for k in solid]))[0]
+    skin = 2.0 * courant * l0
+    reach = 0.5 * (sizes.max() + max(sizes.max(), l0))
+    radius = float(reach + skin)
+    grid = _grid(position[active], _domain(scene), radius, 1)
+    dem = np.concatenate([position[index], position[walls]])
+    if candidate_capacity is None:
+        most = int(candidate_counts(grid, dem).max())
+        candidate_capacity = max(4, math.ceil(CANDIDATE_MARGIN * most))
+    grid = eqx.tree_at(lambda g: g.candidate_capacity, grid, int(candidate_capacity))
+    return walls, grid, radius
 
 
 def _selected(grains, capacity: int, state: State) -> np.ndarray:
