@@ -15,7 +15,9 @@ Everyday API, re-exported here:
   `time_step_limits`, `StepHistory`;
 - sweeps and fits: `sweep`, `calibrate`; over devices and processes:
   `member_mesh`, `start_processes`, and `sweep_run` (a run file per member);
-  one run over several devices: `shard_particles`;
+  one run over several devices: `shard_particles` (XLA's partitioning) and
+  `simulate_slabs` (explicit scenes, slabs with a halo: `SlabRun`,
+  `SlabRunError`, `slab_halo`);
 - the two pressure stages `SemiImplicit`, `Explicit` and the gradients
   `CorrectedGradient`, `StandardGradient`, with the weight `MPSWeight`;
 - the coupling records between fluid and body stages: `Coupling`, `FluidLoad`.
@@ -52,6 +54,10 @@ from ._regions import add_porous_regions as add_porous_regions
 from ._result import Result as Result
 from ._result import StepInfo as StepInfo
 from ._scene import Scene as Scene
+from ._slabs import SlabRun as SlabRun
+from ._slabs import SlabRunError as SlabRunError
+from ._slabs import simulate_slabs as simulate_slabs
+from ._slabs import slab_halo as slab_halo
 from ._simulate import Frame as Frame
 from ._simulate import StepHistory as StepHistory
 from ._simulate import Trajectory as Trajectory

@@ -72,11 +72,19 @@ class Result(eqx.Enumeration):
         "scene setting `contact_capacity=...`), or find why grains crowd (an "
         "overlapping start, a stiffness too low for the load)."
     )
+    slab_overflow = (
+        "In a run split over devices by slabs (`jaxmps.simulate_slabs`), a slab "
+        "held more particles than its slots, or more particles crossed or lay "
+        "near one of its cuts than the halo's slots: the flow gathered where the "
+        "start's layout had few particles. Raise `simulate_slabs(slack=...)` "
+        "(slots per slab and per halo, as a multiple of the start's largest "
+        "counts), or split over fewer devices."
+    )
 
 
 # Equinox's `Enumeration` has no public accessor for an item's integer code, which
 # run files store and batched results are compared by, nor for its name, which
-# reports print; these three functions are the only places that read its private
+# reports print; these four functions are the only places that read its private
 # fields.
 
 
@@ -93,6 +101,15 @@ def result_from_code(code: int) -> Result:
         if int(np.asarray(item._value)) == int(code):
             return item
     raise ValueError(f"No jaxmps.Result has the integer code {code}.")
+
+
+def traced_result(code: Int[ArrayLike, ""]) -> Result:
+    """The `Result` item of an integer code that may be traced (inside jit)."""
+    out = Result.successful
+    for name in Result._name_to_item:
+        item = getattr(Result, name)
+        out = Result.where(code == item._value, item, out)
+    return out
 
 
 def result_name(result: Result) -> str:

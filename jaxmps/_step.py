@@ -53,9 +53,15 @@ def _step(
     state: State,
     batch_axis: str | None = None,
     dt: Scalar | None = None,
+    counted: Mask | None = None,
 ) -> tuple[State, StepInfo]:
     """One step of `dt` (None: `params.dt`). `params.dt` stays the reference step
-    (`PressureInputs.reference_dt`); the stages see `params` with `dt` in it."""
+    (`PressureInputs.reference_dt`); the stages see `params` with `dt` in it.
+
+    `counted` (None: all) restricts the particle checks (leaving the domain,
+    stability, finiteness, the recorded acceleration) to those particles: a slab
+    of a split run (`jaxmps.simulate_slabs`) steps its halo's copies of other
+    slabs' particles too, and only its own particles' outcome is its to judge."""
     reference_dt = params.dt
     if dt is not None:
         params = eqx.tree_at(lambda p: p.dt, params, dt)
@@ -134,7 +140,10 @@ def _step(
 
     with jax.named_scope("result"):
         info = _info(solution, nbrs_k, nbrs)
-        new, info = _take_out_escaped(scene, new, info, nbrs_k.outside | nbrs.outside)
+        outside = nbrs_k.outside | nbrs.outside
+        if counted is not None:
+            outside &= counted
+        new, info = _take_out_escaped(scene, new, info, outside)
         forced = new.velocity if scene.solver.pressure_is_force else u_forced
         new = _record(
             scene,
@@ -142,8 +151,9 @@ def _step(
             new,
             info,
             pool_short,
-            mobile & new.active,
+            mobile & new.active if counted is None else mobile & new.active & counted,
             (forced - state.velocity) / params.dt,
+            counted,
         )
     return new, info
 
@@ -383,12 +393,14 @@ def _record(
     pool_short: Bool[Array, ""],
     mobile: Mask,
     forced: Float[Array, "n d"],
+    counted: Mask | None = None,
 ) -> State:
     """Record the step's first failure in the state's result: overflows, an empty
     pool, a particle out of the domain, a step beyond a stability limit (over the
     `mobile` particles), an unconverged pressure solve, a non-finite state; and
     the step's largest acceleration by forces (`forced`: gravity and viscosity,
-    and the pressure where it is a force: `pressure_is_force` of the solver)."""
+    and the pressure where it is a force: `pressure_is_force` of the solver). The
+    finiteness is checked on the `counted` particles (None: all)."""
     speed = jnp.sqrt(jnp.sum(new.velocity**2, axis=-1))
     courant = jnp.max(jnp.where(mobile, speed, 0.0)) * params.dt / scene.spacing
     # A diagnostic of the dt choice, which is a constant to the gradient (and the
@@ -397,9 +409,10 @@ def _record(
     forced = jnp.sqrt(jnp.sum(forced**2, axis=-1))
     acceleration = jnp.max(jnp.where(mobile, forced, 0.0), initial=0.0)
     viscous = 2 * scene.dim * params.viscosity * params.dt / scene.lam
+    checked = new.active if counted is None else new.active & counted
     finite = jnp.all(
         jnp.where(
-            new.active,
+            checked,
             jnp.all(jnp.isfinite(new.position), axis=-1)
             & jnp.all(jnp.isfinite(new.velocity), axis=-1)
             & jnp.isfinite(new.pressure),
