@@ -36,4 +36,6 @@ devices=1; [ "$ngpu" -gt 1 ] && devices="1 $ngpu"
 python benchmarks/sweep_scaling.py --devices $devices --out "$R/sweep_scaling_$TAG"
 [ "$ngpu" -gt 1 ] && python benchmarks/sharded_run.py --devices $devices \
   --particles 100000 --out "$R/sharded_run_$TAG"
+[ "$ngpu" -gt 1 ] && python benchmarks/slab_run.py --devices $devices \
+  --particles 100000 --out "$R/slab_run_$TAG"
 echo "gpu_suite.sh: results in $R/*_$TAG.{json,md}"

@@ -19,12 +19,14 @@ every iteration of the solve); they are refused, and `shard_particles` splits
 them instead.
 
 After each step the particles that crossed a cut move to the neighbouring slab
-(they lay in its halo, so a step cannot carry one further). The cuts are fixed
-at the start, where they split the active particles into equal counts.
+(they lay in its halo, so a step cannot carry one further). At the start and at
+every save the host cuts the slabs anew into equal counts of particles (at least
+a halo apart), so a flow that gathers in one part of the domain (a dam break's
+surge) spreads over the devices again; the slots per slab and per halo grow
+there when the new layout needs more (a new compilation).
 """
 
 import dataclasses
-import functools
 import math
 
 import equinox as eqx
@@ -44,9 +46,9 @@ from ._result import (
     update_result,
 )
 from ._scene import Scene
-from ._simulate import Frame
+from ._simulate import Frame, frame
 from ._state import State
-from ._step import _step, time_step
+from ._step import _step, time_step, without_neighbour_lists
 from .fluid import Explicit
 
 # The name of the mesh axis the slabs are laid along.
@@ -73,10 +75,10 @@ class SlabRun(eqx.Module):
         saved: a `Frame` per save, stacked along a leading time axis.
         result: the first failure (lowest device first within a step), or
             `Result.successful`.
-        cuts: the slabs' bounds along x [m], shape (devices + 1,) (the outer two
-            infinite).
+        cuts: the slabs' bounds along x [m] in the last save interval, shape
+            (devices + 1,) (the outer two infinite).
         halo: the halo's width [m].
-        slots: particle slots per slab.
+        slots: particle slots per slab (the last interval's).
         halo_slots: slots per halo side (and for the particles crossing a cut).
         peak_owned: the most particles each slab held, shape (devices,).
         peak_halo: the most particles each slab sent to one neighbour's halo,
@@ -112,7 +114,7 @@ def simulate_slabs(
     devices: int | None = None,
     mesh: Mesh | None = None,
     halo: float | None = None,
-    slack: float = 2.0,
+    slack: float = 1.5,
     throw: bool = True,
 ) -> SlabRun:
     """Run `n_steps` steps of an explicit scene split over devices by slabs across
@@ -123,21 +125,22 @@ def simulate_slabs(
     `ppermute` each way), then moves the particles that crossed a cut to the
     neighbour (one more each way). The particles of a slab take the same step as
     in a one-device run; they differ from it by round-off only (the sums over
-    neighbours run in another order). Adaptive steps take the smallest dt over
-    the slabs; a failed step is not retried (the run stops there).
+    neighbours run in another order). At every save the slabs are cut anew into
+    equal counts. Adaptive steps take the smallest dt over the slabs; a failed
+    step is not taken and not retried: the run stops with the last good state.
 
     Args:
         scene, params, state: an explicit scene (`solver="explicit"`) of fluid and
             fixed walls (no bodies, inflow, outflow or moving walls).
         n_steps: steps to take; a multiple of `save_every`.
-        save_every: steps between saves (default: n_steps).
+        save_every: steps between saves, and between new cuts (default: n_steps).
         devices, mesh: the devices (default: all of `jax.devices()`), or a
             one-axis mesh of them; the slabs follow the mesh's order.
         halo: the halo's width [m] (default `slab_halo(scene)`); a narrower
             one gives wrong values near the cuts.
-        slack: slots per slab and per halo as a multiple of the start's largest
-            counts (the flow may gather in one slab; more sets
-            `Result.slab_overflow`).
+        slack: slots per slab and per halo as a multiple of the largest counts
+            at a cut (the flow gathers between saves; more sets
+            `Result.slab_overflow`). More slack costs work on every device.
         throw: raise `SlabRunError` (holding the run) if the run failed.
 
     Returns:
@@ -145,7 +148,8 @@ def simulate_slabs(
 
     Raises:
         ValueError: for a scene this split cannot run, more devices than exist,
-            slabs narrower than the halo, or bad counts (naming the setting).
+            a domain too short for as many slabs a halo wide, or bad counts
+            (naming the setting).
     """
     _check(scene, state, n_steps, save_every, halo, slack)
     save_every = n_steps if save_every is None else int(save_every)
@@ -153,20 +157,39 @@ def simulate_slabs(
     mesh = Mesh(mesh.devices.reshape(-1), (SLABS,))
     count = int(mesh.devices.size)
     halo = slab_halo(scene) if halo is None else float(halo)
-    layout = _layout(state, count, halo, slack)
-    arrays = _place(layout, mesh, state)
-    run = _compiled(scene, params, mesh, layout, halo, n_steps, save_every)
-    final, saved, scalars, peaks = run(*arrays)
-    return _assembled(
-        state,
-        layout,
-        halo,
-        to_host(final),
-        to_host(saved),
-        to_host(scalars),
-        to_host(peaks),
-        throw,
+    start = without_neighbour_lists(state)
+    state, frames, layout = start, [], None
+    peaks = np.zeros((count, 2), dtype=int)
+    for _ in range(n_steps // save_every):
+        if state.result == Result.successful:
+            layout = _layout(state, count, halo, slack, layout)
+            final, scalars, reached = _program(
+                scene,
+                params,
+                mesh,
+                layout.shape(halo),
+                save_every,
+                *_place(layout, mesh, state),
+            )
+            state = _gathered(state, layout, to_host(final), to_host(scalars))
+            peaks = np.maximum(peaks, np.asarray(to_host(reached)).reshape(count, 2))
+        frames.append(frame(scene, state))
+    # Stacked by tree operations (a Frame's annotations are those of one save).
+    saved = jax.tree.map(lambda *xs: jnp.stack(xs), *frames)
+    run = SlabRun(
+        state=state,
+        saved=saved,
+        result=state.result,
+        cuts=layout.cuts,
+        halo=halo,
+        slots=layout.slots,
+        halo_slots=layout.halo_slots,
+        peak_owned=peaks[:, 0],
+        peak_halo=peaks[:, 1],
     )
+    if throw and state.result != Result.successful:
+        raise SlabRunError(f"{result_name(state.result)}: {Result[state.result]}", run)
+    return run
 
 
 def _check(scene, state, n_steps, save_every, halo, slack) -> None:
@@ -206,8 +229,8 @@ def _check(scene, state, n_steps, save_every, halo, slack) -> None:
 
 
 class _Layout(eqx.Module):
-    """The start split into slabs (host arrays): per device `slots` particle slots
-    (ids: the input slot of each, -1 where empty)."""
+    """The state split into slabs (host arrays): per device `slots` particle slots
+    (ids: the state's slot of each, -1 where empty)."""
 
     cuts: np.ndarray
     ids: np.ndarray  # (devices, slots)
@@ -215,50 +238,60 @@ class _Layout(eqx.Module):
     slots: int
     halo_slots: int
 
+    def shape(self, halo: float) -> tuple:
+        """What the compiled program depends on besides the arrays."""
+        return (self.cuts.size - 1, self.slots, self.halo_slots, halo)
 
-def _layout(state: State, count: int, halo: float, slack: float) -> _Layout:
-    """Cut the active particles into `count` equal counts across x; size the slabs
-    and halos by `slack` times the largest counts of the start."""
+
+def _layout(
+    state: State, count: int, halo: float, slack: float, before: "_Layout | None"
+) -> _Layout:
+    """Cut the active particles into `count` equal counts across x, the cuts at
+    least `halo` apart; slots by `slack` times the largest counts, never fewer
+    than `before`'s (so that a layout like the last reuses its program)."""
     position = np.asarray(state.position)
-    active = np.asarray(state.active)
     x = position[:, 0]
-    live = np.flatnonzero(active)
+    live = np.flatnonzero(np.asarray(state.active))
     xs = np.sort(x[live])
-    cuts = np.concatenate(
-        [[-np.inf], [xs[(k * len(xs)) // count] for k in range(1, count)], [np.inf]]
-    )
-    narrow = np.diff(cuts[1:-1])
-    if count > 2 and narrow.min() < halo:
+    cuts = [xs[(k * len(xs)) // count] for k in range(1, count)]
+    for k in range(1, len(cuts)):
+        cuts[k] = max(cuts[k], cuts[k - 1] + halo)
+    if count > 2 and cuts[-1] > xs[-1]:
         raise ValueError(
-            f"{count} devices cut this domain into slabs as narrow as "
-            f"{narrow.min():.4g} m, narrower than the halo ({halo:.4g} m): a slab "
-            "must hold its halo. Split over fewer devices (devices=...), or run a "
-            "longer domain."
+            f"{count} devices need {count - 2} inner slabs at least a halo "
+            f"({halo:.4g} m) wide, more than this domain's particles span across x "
+            f"({xs[-1] - xs[0]:.4g} m). Split over fewer devices (devices=...), or "
+            "run a longer domain."
         )
+    cuts = np.concatenate([[-np.inf], cuts, [np.inf]])
     slab = np.searchsorted(cuts, x[live], side="right") - 1
     counts = np.bincount(slab, minlength=count)
-    slots = int(math.ceil(slack * counts.max() / 8) * 8)
-    # The most particles in any band of the halo's width (the flow may carry the
-    # densest one to a cut).
-    band = int(np.max(np.searchsorted(xs, xs + halo, side="left") - np.arange(len(xs))))
-    halo_slots = int(min(slots, math.ceil(slack * band / 8) * 8))
+    slots = int(math.ceil(len(live) / 8) * 8)
+    halo_slots = 0
+    if count > 1:
+        slots = int(min(slots, math.ceil(slack * counts.max() / 8) * 8))
+        # The most particles in any band of the halo's width.
+        reach = np.searchsorted(xs, xs + halo, side="left") - np.arange(len(xs))
+        halo_slots = int(min(slots, math.ceil(slack * reach.max() / 8) * 8))
+    if before is not None:
+        slots, halo_slots = max(slots, before.slots), max(halo_slots, before.halo_slots)
     ids = np.full((count, slots), -1, dtype=np.int32)
     for d in range(count):
         mine = live[slab == d]
         ids[d, : len(mine)] = mine
     fields = {}
+    taken = ids >= 0
     for name in _FIELDS:
         value = np.asarray(getattr(state, name))
         out = np.zeros((count, slots) + value.shape[1:], dtype=value.dtype)
-        taken = ids >= 0
         out[taken] = value[ids[taken]]
         fields[name] = out
     return _Layout(cuts, ids, fields, slots, halo_slots)
 
 
-def _place(layout: _Layout, mesh: Mesh, start: State) -> tuple:
-    """The layout's arrays on the mesh (slab d's slots on device d) and the
-    start's scalars on every device."""
+def _place(layout: _Layout, mesh: Mesh, state: State) -> tuple:
+    """The program's inputs: the layout's arrays on the mesh (slab d's slots on
+    device d), the cuts and the state's scalars on every device."""
     split = NamedSharding(mesh, PartitionSpec(SLABS))
     whole = NamedSharding(mesh, PartitionSpec())
 
@@ -266,38 +299,40 @@ def _place(layout: _Layout, mesh: Mesh, start: State) -> tuple:
         flat = value.reshape((-1,) + value.shape[2:])
         return jax.device_put(flat, split)
 
+    dtype = layout.fields["position"].dtype
     scalars = {
-        k: jax.device_put(np.asarray(getattr(start, k)), whole)
+        k: jax.device_put(np.asarray(getattr(state, k)), whole)
         for k in ("time", "step", "dt", "acceleration", "escaped")
     }
-    return put(layout.ids), {k: put(v) for k, v in layout.fields.items()}, scalars
+    cuts = jax.device_put(layout.cuts.astype(dtype), whole)
+    return put(layout.ids), {k: put(v) for k, v in layout.fields.items()}, scalars, cuts
 
 
-def _compiled(scene, params, mesh, layout, halo, n_steps, save_every):
-    """The jitted split run: (ids, fields, scalars) -> (final, saved, scalars,
-    peaks)."""
-    count, slots, halo_slots = int(mesh.devices.size), layout.slots, layout.halo_slots
-    cuts = jnp.asarray(layout.cuts, dtype=layout.fields["position"].dtype)
-    shape = dict(count=count, slots=slots, halo_slots=halo_slots, halo=halo)
-    local = functools.partial(
-        _local_run, scene, params, cuts, shape, n_steps, save_every
-    )
+@eqx.filter_jit
+def _program(scene, params, mesh, shape, n_steps, ids, fields, scalars, cuts):
+    """`n_steps` steps of every slab (`shard_map` over `mesh`): the final slots,
+    scalars and each slab's most particles held and sent to one halo."""
+    dynamic, static = eqx.partition(params, eqx.is_array)
+
+    def local(dynamic, ids, fields, scalars, cuts):
+        params = eqx.combine(dynamic, static)
+        return _local_run(scene, params, shape, n_steps, ids, fields, scalars, cuts)
+
     spec, whole = PartitionSpec(SLABS), PartitionSpec()
-    mapped = jax.shard_map(
+    return jax.shard_map(
         local,
         mesh=mesh,
-        in_specs=(spec, spec, whole),
-        out_specs=(spec, PartitionSpec(None, SLABS), whole, spec),
+        in_specs=(whole, spec, spec, whole, whole),
+        out_specs=(spec, whole, spec),
         check_vma=False,
-    )
-    return jax.jit(mapped)
+    )(dynamic, ids, fields, scalars, cuts)
 
 
-def _local_run(scene, params, cuts, shape, n_steps, save_every, ids, fields, start):
+def _local_run(scene, params, shape, n_steps, ids, fields, scalars, cuts):
     """One device's part of the run (inside `shard_map`)."""
     device = jax.lax.axis_index(SLABS)
     lo, hi = cuts[device], cuts[device + 1]
-    state = State(result=Result.successful, **start, **fields)
+    state = State(result=Result.successful, **scalars, **fields)
     peaks = jnp.zeros((2,), jnp.int32)
 
     def one_step(carry, _):
@@ -309,21 +344,12 @@ def _local_run(scene, params, cuts, shape, n_steps, save_every, ids, fields, sta
             lambda a, b: jnp.where(taken, a, b), (new, new_ids), (state, ids)
         )
         state = dataclasses.replace(state, result=new.result)
-        grown = jnp.maximum(
-            peaks, jnp.stack([jnp.sum(new.active, dtype=jnp.int32), sent])
-        )
+        held = jnp.sum(new.active, dtype=jnp.int32)
+        grown = jnp.maximum(peaks, jnp.stack([held, sent]))
         return (state, ids, jnp.where(taken, grown, peaks)), None
 
-    def block(carry, _):
-        carry, _ = jax.lax.scan(one_step, carry, None, length=save_every)
-        state, ids, _ = carry
-        seen = {k: getattr(state, k) for k in ("position", "velocity", "pressure")}
-        return carry, dict(
-            seen, active=state.active & (ids >= 0), ids=ids, time=state.time[None]
-        )
-
-    (state, ids, peaks), saved = jax.lax.scan(
-        block, (state, ids, peaks), None, length=n_steps // save_every
+    (state, ids, peaks), _ = jax.lax.scan(
+        one_step, (state, ids, peaks), None, length=n_steps
     )
     final = dict({k: getattr(state, k) for k in _FIELDS}, ids=ids)
     scalars = dict(
@@ -334,25 +360,25 @@ def _local_run(scene, params, cuts, shape, n_steps, save_every, ids, fields, sta
         escaped=state.escaped,
         code=result_code(state.result),
     )
-    return final, saved, scalars, peaks[None, :]
+    return final, scalars, peaks[None, :]
 
 
 def _slab_step(scene, params, state, ids, lo, hi, shape):
     """One step of a slab: its halo in, the one-device step, crossings out. Returns
     the new state (its result the first failure over all slabs), ids, and the
     most particles sent to one halo."""
-    count, slots, halo_slots, halo = (
-        shape["count"],
-        shape["slots"],
-        shape["halo_slots"],
-        shape["halo"],
-    )
+    count, slots, halo_slots, halo = shape
     result = state.result
     dt = None
     if scene.time_step is not None:
         dt = jax.lax.pmin(time_step(scene, params, state), SLABS)
         small = dt < scene.time_step.smallest(params)
         result = update_result(result, small, Result.time_step_below_minimum)
+    if count == 1:
+        new, _ = _step(
+            scene, params, dataclasses.replace(state, result=result), None, dt
+        )
+        return new, ids, jnp.zeros((), jnp.int32)
     fields = {k: getattr(state, k) for k in _FIELDS}
     x = state.position[:, 0]
     to_lower = state.active & (x < lo + halo)
@@ -380,13 +406,13 @@ def _slab_step(scene, params, state, ids, lo, hi, shape):
     mine["ids"] = jnp.where(down | up, -1, ids)
     mine, full = _insert(mine, came_up, came_down, slots=slots)
     ids = mine.pop("ids")
-    full = jax.lax.psum(full.astype(jnp.int32), SLABS) > 0 if count > 1 else full
+    full = jax.lax.psum(full.astype(jnp.int32), SLABS) > 0
     result = update_result(new.result, crowded | full, Result.slab_overflow)
     new = dataclasses.replace(
         new,
         acceleration=jax.lax.pmax(new.acceleration, SLABS),
         escaped=state.escaped + jax.lax.psum(new.escaped - state.escaped, SLABS),
-        result=_first_failure(result, count),
+        result=_first_failure(result),
         **mine,
     )
     return new, ids, sent
@@ -398,13 +424,41 @@ def _swap(fields, down, up, slots, count):
     slab below, any overflow of the sends)."""
     low, low_over = _pack(fields, down, slots)
     high, high_over = _pack(fields, up, slots)
-    if count == 1:
-        empty = jax.tree.map(jnp.zeros_like, low)
-        return empty, empty, jnp.asarray(False)
-    from_above = jax.lax.ppermute(low, SLABS, [(d, d - 1) for d in range(1, count)])
-    from_below = jax.lax.ppermute(high, SLABS, [(d, d + 1) for d in range(count - 1)])
+    downwards = [(d, d - 1) for d in range(1, count)]
+    from_above = _unbundle(jax.lax.ppermute(_bundle(low), SLABS, downwards), low)
+    upwards = [(d, d + 1) for d in range(count - 1)]
+    from_below = _unbundle(jax.lax.ppermute(_bundle(high), SLABS, upwards), high)
     overflow = jax.lax.psum((low_over | high_over).astype(jnp.int32), SLABS) > 0
     return from_above, from_below, overflow
+
+
+def _bundle(fields: dict) -> tuple:
+    """The fields as one float and one integer array (columns in key order): two
+    transfers instead of one per field (each is a synchronisation)."""
+    floats = [v.reshape(v.shape[0], -1) for v in fields.values() if _is_float(v)]
+    ints = [
+        v.reshape(v.shape[0], -1).astype(jnp.int32)
+        for v in fields.values()
+        if not _is_float(v)
+    ]
+    return jnp.concatenate(floats, axis=1), jnp.concatenate(ints, axis=1)
+
+
+def _unbundle(bundle: tuple, like: dict) -> dict:
+    """`_bundle`'s inverse, shapes and dtypes taken from `like`."""
+    out, columns = {}, {True: 0, False: 0}
+    for k, v in like.items():
+        kind = _is_float(v)
+        width = int(np.prod(v.shape[1:], dtype=int))
+        start = columns[kind]
+        piece = bundle[0 if kind else 1][:, start : start + width]
+        out[k] = piece.reshape(v.shape).astype(v.dtype)
+        columns[kind] = start + width
+    return out
+
+
+def _is_float(value) -> bool:
+    return jnp.issubdtype(value.dtype, jnp.floating)
 
 
 def _pack(fields, mask, slots):
@@ -437,11 +491,9 @@ def _insert(mine, *arrivals_from, slots):
     return out, coming > jnp.sum(~mine["active"])
 
 
-def _first_failure(result: Result, count: int) -> Result:
+def _first_failure(result: Result) -> Result:
     """Every slab's result made the first failure over the slabs (lowest device
     first), so that all stop together."""
-    if count == 1:
-        return result
     code = result_code(result)
     failed = code != 0
     key = jnp.where(failed, jax.lax.axis_index(SLABS) * 1024 + code, 2**30)
@@ -450,55 +502,19 @@ def _first_failure(result: Result, count: int) -> Result:
     return traced_result(code)
 
 
-def _assembled(start, layout, halo, final, saved, scalars, peaks, throw) -> SlabRun:
-    """The run in the input's slot order (host)."""
-
-    def gathered(base, values, ids):
-        out = np.array(base, copy=True)
-        taken = ids >= 0
-        out[ids[taken]] = values[taken]
-        return out
-
+def _gathered(start: State, layout: _Layout, final: dict, scalars: dict) -> State:
+    """The state after a save interval, in `start`'s slot order (host)."""
     ids = final["ids"]
-    fields = {k: gathered(getattr(start, k), final[k], ids) for k in _FIELDS}
+    taken = ids >= 0
+    fields = {}
+    for k in _FIELDS:
+        out = np.array(getattr(start, k), copy=True)
+        out[ids[taken]] = final[k][taken]
+        fields[k] = jnp.asarray(out)
     code = int(scalars.pop("code"))
-    result = result_from_code(code)
-    state = dataclasses.replace(
+    return dataclasses.replace(
         start,
-        result=result,
+        result=result_from_code(code),
         **{k: jnp.asarray(v) for k, v in scalars.items()},
-        neighbours=None,
-        **{k: jnp.asarray(v) for k, v in fields.items()},
+        **fields,
     )
-    frames = []
-    times = np.asarray(saved["time"]).reshape(len(saved["ids"]), -1)[:, 0]
-    for t, ids_t in enumerate(saved["ids"]):
-        seen = {
-            k: gathered(
-                np.zeros_like(np.asarray(getattr(start, k))), saved[k][t], ids_t
-            )
-            for k in ("position", "velocity", "pressure", "active")
-        }
-        frames.append(
-            Frame(
-                time=jnp.asarray(times[t]),
-                **{k: jnp.asarray(v) for k, v in seen.items()},
-            )
-        )
-    # Stacked by tree operations (a Frame's annotations are those of one save).
-    stacked = jax.tree.map(lambda *xs: jnp.stack(xs), *frames)
-    peaks = np.asarray(peaks).reshape(-1, 2)
-    run = SlabRun(
-        state=state,
-        saved=stacked,
-        result=result,
-        cuts=layout.cuts,
-        halo=halo,
-        slots=layout.slots,
-        halo_slots=layout.halo_slots,
-        peak_owned=peaks[:, 0],
-        peak_halo=peaks[:, 1],
-    )
-    if throw and code != 0:
-        raise SlabRunError(f"{result_name(result)}: {Result[result]}", run)
-    return run

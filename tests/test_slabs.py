@@ -103,18 +103,21 @@ def test_four_slabs_equal_one_device_and_a_narrow_halo_does_not():
 
 
 def test_a_slab_that_overflows_stops_with_the_last_good_state():
-    """With no slack the slab the surge flows into runs out of slots: the run
-    stops with `Result.slab_overflow` (raised with the run attached), its state
-    the last good step's, and a rerun with the default slack goes past it."""
+    """With no slack and the slabs cut once, the slab the surge flows into runs
+    out of slots: the run stops with `Result.slab_overflow` (raised with the run
+    attached), its state the last good step's. Cut anew every 20 steps, the same
+    slots suffice; with the default slack, so does one cut."""
     out = _python(
         """
         c = case()
+        raised = None
         try:
-            jaxmps.simulate_slabs(c.scene, c.params, c.state, 200, 20, devices=2,
+            jaxmps.simulate_slabs(c.scene, c.params, c.state, 200, devices=2,
                                   slack=1.0)
-            raised = None
         except jaxmps.SlabRunError as e:
             raised, run = str(e), e.run
+        recut = jaxmps.simulate_slabs(c.scene, c.params, c.state, 200, 20,
+                                      devices=2, slack=1.0)
         again = jaxmps.simulate_slabs(c.scene, c.params, c.state, 200, devices=2)
         one = jaxmps.simulate(c.scene, c.params, c.state, int(run.state.step))
         print(json.dumps(dict(
@@ -123,6 +126,7 @@ def test_a_slab_that_overflows_stops_with_the_last_good_state():
             finite=bool(np.all(np.isfinite(np.asarray(run.state.position)))),
             dx=apart(one.state.position, run.state.position, one.state.active),
             again=bool(again.result == jaxmps.Result.successful),
+            recut=bool(recut.result == jaxmps.Result.successful),
             peak=np.asarray(again.peak_owned).tolist(), slots=again.slots,
         )))
         """,
@@ -133,6 +137,7 @@ def test_a_slab_that_overflows_stops_with_the_last_good_state():
     assert 0 < out["step"] < 200
     assert out["dx"] < 1e-12
     assert out["again"] and max(out["peak"]) <= out["slots"]
+    assert out["recut"]
 
 
 def test_one_slab_is_the_one_device_run_bit_for_bit():
@@ -170,19 +175,19 @@ def test_what_a_split_by_slabs_refuses():
         jaxmps.simulate_slabs(*args, 10, devices=9)
 
 
-def test_slabs_narrower_than_the_halo_are_refused():
-    """Four slabs of the default (short) dam break at l0 = 2 cm would be
-    narrower than the halo: refused before anything runs, naming devices."""
+def test_a_domain_too_short_for_its_slabs_is_refused():
+    """Eight slabs of the default (short) dam break at l0 = 2 cm cannot each be
+    a halo wide: refused before anything runs, naming devices."""
     out = _python(
         """
         c = jaxmps.scenes.dam_break(solver="explicit", spacing=0.02)
         try:
-            jaxmps.simulate_slabs(c.scene, c.params, c.state, 10, devices=4)
+            jaxmps.simulate_slabs(c.scene, c.params, c.state, 10, devices=8)
             print(json.dumps(dict(message=None)))
         except ValueError as e:
             print(json.dumps(dict(message=str(e))))
         """,
-        devices=4,
+        devices=8,
     )
-    assert "narrower than the halo" in out["message"]
+    assert "at least a halo" in out["message"]
     assert "devices=" in out["message"]
