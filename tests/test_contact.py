@@ -1,7 +1,7 @@
 """Contact and friction of rigid bodies: the Coulomb law (stick/slip, normal-force
 estimates, the smooth variant), the friction onset tan(theta) = mu (vmapped over
-angles), the sliding acceleration and the gradient of the sliding distance with
-respect to mu_k, two bodies colliding, and the impact impulse bounds."""
+angles), the sliding acceleration and the gradients of the sliding distance with
+respect to mu_k and gravity, two bodies colliding, and the impact impulse bounds."""
 
 import math
 
@@ -32,8 +32,11 @@ def test_sliding_acceleration(tilt_sweep):
     np.testing.assert_allclose(dx[fast], theory[fast], rtol=0.10)
 
 
-def test_sliding_distance_gradient_wrt_mu_kinetic():
-    """d(distance)/d(mu_k) by reverse mode equals central finite differences."""
+def test_sliding_distance_gradients_match_differences_and_theory():
+    """The gradient of the sliding distance by reverse mode, w.r.t. mu_k and both
+    components of gravity, equals central finite differences and the uniform
+    sliding law x = (g_x - mu_k |g_y|) T^2 / 2; w.r.t. mu_s it is exactly zero
+    while the block slides."""
     case = jaxmps.scenes.friction_tilt(mu_static=0.4)
     theta = math.atan(0.8)
     params = eqx.tree_at(
@@ -41,24 +44,37 @@ def test_sliding_distance_gradient_wrt_mu_kinetic():
         case.params,
         jnp.asarray([G * math.sin(theta), -G * math.cos(theta)]),
     )
+    params = eqx.tree_at(lambda p: p.rigid.mu_kinetic, params, 0.4 * jnp.ones(1))
     n = 100
 
-    def distance(mu_k):
-        p = eqx.tree_at(lambda p: p.rigid.mu_kinetic, params, mu_k * jnp.ones(1))
+    def distance(p):
         out = jaxmps.simulate(case.scene, p, case.state, n, n // 4, throw=False)
         return out.state.rigid.centre[0, 0]
 
-    grad = jax.grad(distance)(jnp.asarray(0.4))
+    grad = jax.grad(distance)(params)
+    assert float(jnp.abs(grad.rigid.mu_static).max()) == 0.0
     # A small step: the MPS weight has a kink at r_e, so pairs crossing it as the
     # block slides make the distance piecewise smooth; a step of 1e-4 can straddle a
     # kink (measured: 6 % off over 100 steps at tan(theta) = 0.6, mu = 0.45).
     h = 1e-6
-    fd = (distance(0.4 + h) - distance(0.4 - h)) / (2 * h)
-    # Analytic for uniform sliding: -g cos(theta) T^2 / 2 (T = n dt).
     t = n * float(params.dt)
-    assert float(grad) < 0
-    np.testing.assert_allclose(float(grad), float(fd), rtol=1e-4)
-    np.testing.assert_allclose(float(grad), -G * math.cos(theta) * t * t / 2, rtol=0.1)
+    mu_k = lambda m: eqx.tree_at(lambda p: p.rigid.mu_kinetic, params, m)  # noqa: E731
+    fd_mu = (
+        distance(mu_k(jnp.full(1, 0.4 + h))) - distance(mu_k(jnp.full(1, 0.4 - h)))
+    ) / (2 * h)
+    d_mu = float(grad.rigid.mu_kinetic[0])
+    assert d_mu < 0
+    np.testing.assert_allclose(d_mu, float(fd_mu), rtol=1e-4)
+    np.testing.assert_allclose(d_mu, -G * math.cos(theta) * t * t / 2, rtol=0.1)
+    # Gravity along (1, 1) / sqrt 2: d x / d g_x = T^2 / 2, d x / d g_y = mu_k T^2 / 2.
+    g0, along = params.gravity, jnp.asarray([1.0, 1.0]) / math.sqrt(2)
+    tilt = lambda g: eqx.tree_at(lambda p: p.gravity, params, g)  # noqa: E731
+    fd = (distance(tilt(g0 + h * G * along)) - distance(tilt(g0 - h * G * along))) / (
+        2 * h * G
+    )
+    d_g = float(jnp.vdot(grad.gravity, along))
+    np.testing.assert_allclose(d_g, float(fd), rtol=1e-4)
+    np.testing.assert_allclose(d_g, 1.4 * t * t / 2 / math.sqrt(2), rtol=0.1)
 
 
 def test_block_impact_impulse_within_momentum_bounds():

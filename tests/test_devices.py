@@ -264,31 +264,49 @@ def test_one_run_split_over_devices_equals_one_device():
 
 
 def test_calibrating_a_batch_over_two_devices_equals_one_device():
+    """Four dam breaks under different gravity share one viscosity: over two
+    devices the batched fit is the one-device fit to 1e-12; its loss is the mean
+    of the four single-curve losses and its plain gradient step the mean of
+    theirs (1e-6: the batch decides neighbour-list reuse jointly)."""
     out = _python(
         """
         import json, numpy as np, optax, jaxmps
         from jaxmps import member_mesh
         from jaxmps.calibration import Curve, Identity
         case = jaxmps.scenes.dam_break(spacing=0.0146, dt=1e-3)
-        gravity = np.array([[0.0, -g] for g in (9.81, 8.0, 6.5, 5.0)])
+        g = (9.81, 8.0, 6.5, 5.0)
+        gravity = np.array([[0.0, -x] for x in g])
         t = np.linspace(0.005, 0.02, 4)
         curves = [Curve(times=t, values=0.15 + 0.1 * k * t) for k in range(4)]
+        common = dict(optimiser=optax.sgd(1e-9), iterations=2,
+                      initial={"viscosity": 1e-5}, progress=False)
+        fields = {"viscosity": Identity()}
         histories = [
-            jaxmps.calibrate(case, {"viscosity": Identity()}, curves, "front", 20, 5,
-                             optimiser=optax.sgd(1e-9), iterations=2,
-                             initial={"viscosity": 1e-5}, progress=False,
+            jaxmps.calibrate(case, fields, curves, "front", 20, 5,
                              batch={"gravity": gravity},
-                             mesh=member_mesh(devices=d)).history
+                             mesh=member_mesh(devices=d), **common).history
             for d in (1, 2)
         ]
-        print(json.dumps(histories))
+        singles = [
+            jaxmps.calibrate(jaxmps.scenes.dam_break(spacing=0.0146, dt=1e-3,
+                                                     gravity=x),
+                             fields, curves[k], "front", 20, 5, **common).history
+            for k, x in enumerate(g)
+        ]
+        print(json.dumps([histories, singles]))
         """,
         devices=2,
     )
-    one, two = json.loads(out.strip().splitlines()[-1])
+    (one, two), singles = json.loads(out.strip().splitlines()[-1])
     assert one["loss"][0] > 0
     np.testing.assert_allclose(two["loss"], one["loss"], rtol=1e-12)
     np.testing.assert_allclose(two["viscosity"], one["viscosity"], rtol=1e-12)
+    mean_loss = np.mean([h["loss"][0] for h in singles])
+    assert one["loss"][0] == pytest.approx(mean_loss, rel=1e-6)
+    steps = [h["viscosity"][1] - h["viscosity"][0] for h in singles]
+    assert abs(np.mean(steps)) > 0  # the step moved the viscosity
+    step = one["viscosity"][1] - one["viscosity"][0]
+    assert step == pytest.approx(np.mean(steps), rel=1e-6)
 
 
 def test_a_sweep_result_saves_to_one_file(tmp_path):
