@@ -285,6 +285,7 @@ def _contact(n=(0.0, 1.0), force=(0.0, 1000.0), pressure_sum=2000.0):
         touching=jnp.asarray([True]),
         pressure_sum=jnp.asarray([pressure_sum]),
         arm=jnp.asarray([[0.0, -0.5]]),
+        wall_velocity=jnp.zeros((1, 2)),
     )
 
 
@@ -390,3 +391,55 @@ def test_block_in_still_water_sticks_and_slides_with_its_submerged_weight():
     assert abs(dx[1]) < 1e-3, dx[1]
     share = (math.sin(theta) - 0.25 * math.cos(theta)) / math.sin(theta)
     np.testing.assert_allclose(dx[2] / dx[0], share, rtol=0.15)
+
+
+@pytest.mark.parametrize("mu", [0.5, 0.1])
+def test_a_shaken_floor_carries_a_block_that_sticks_and_drags_one_that_slips(mu):
+    """The floor (all walls) shaken along x, x_f = A sin(2 pi f t) with a peak
+    acceleration A (2 pi f)^2 = 0.2 g. Friction acts on the block's velocity
+    relative to the floor. At mu = 0.5 the block, at rest while the floor starts
+    at v0 = 2 pi f A, slips until friction has brought it to the floor's speed,
+    then sticks: it follows the floor (within 0.05 A) a distance behind it of
+    about v0^2 / (2 mu g) (20 %). At mu = 0.1 it slips, dragged at no more than
+    mu g (5 %) but dragged (its peak speed over half the floor's)."""
+    from jaxmps._params import HarmonicParams
+    from jaxmps.fluid import PrescribedMotion
+    from jaxmps.fluid._motion import Harmonic
+
+    case = jaxmps.scenes.friction_tilt(
+        spacing=0.2, angle=0.0, mu_static=mu, mu_kinetic=mu, dt=2e-3
+    )
+    kind = np.asarray(case.state.kind)
+    walls = np.flatnonzero(
+        (kind == int(jaxmps.Kind.WALL)) | (kind == int(jaxmps.Kind.DUMMY))
+    )
+    frequency = 1.0
+    amplitude = 0.2 * G / (2 * math.pi * frequency) ** 2
+    motion = PrescribedMotion(
+        particles=tuple(int(i) for i in walls), axis=(1.0, 0.0), law=Harmonic()
+    )
+    none = lambda x: x is None  # noqa: E731
+    scene = eqx.tree_at(lambda s: s.motion, case.scene, motion, is_leaf=none)
+    params = eqx.tree_at(
+        lambda p: p.motion,
+        case.params,
+        HarmonicParams(amplitude=amplitude, frequency=frequency),
+        is_leaf=none,
+    )
+    n, every = 750, 5
+    out = jaxmps.simulate(scene, params, case.state, n, every)
+    assert out.result == jaxmps.Result.successful
+    t = np.asarray(out.saved.time)
+    body = np.asarray(case.state.rigid.body)
+    x = np.asarray(out.saved.position)[:, body == 0, 0].mean(axis=1)
+    moved = x - np.asarray(case.state.position)[body == 0, 0].mean()
+    floor = amplitude * np.sin(2 * math.pi * frequency * t)
+    v = np.asarray(out.saved.velocity)[:, body == 0, 0].mean(axis=1)
+    peak = amplitude * 2 * math.pi * frequency
+    if mu * G > amplitude * (2 * math.pi * frequency) ** 2:
+        behind = (floor - moved)[t > 0.2]
+        assert np.ptp(behind) < 0.05 * amplitude
+        assert np.mean(behind) == pytest.approx(peak**2 / (2 * mu * G), rel=0.2)
+    else:
+        assert np.max(np.abs(v)) > 0.5 * peak
+        assert np.max(np.abs(np.diff(v) / np.diff(t))) < 1.05 * mu * G

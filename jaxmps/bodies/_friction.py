@@ -25,6 +25,9 @@ class Contact(eqx.Module):
             seed-000 normal force is this times l0^(d-1)), shape (b,).
         arm: mean offset of the touching particles from the body centre (the lever
             arm of the friction impulse), shape (b, d).
+        wall_velocity: the mean velocity of the wall particles touched (zero for
+            fixed walls; a prescribed motion's for moving ones): friction acts on
+            the body's velocity relative to it, shape (b, d).
     """
 
     force: Float[Array, "b d"]
@@ -32,6 +35,7 @@ class Contact(eqx.Module):
     touching: Bool[Array, " b"]
     pressure_sum: Float[Array, " b"]
     arm: Float[Array, "b d"]
+    wall_velocity: Float[Array, "b d"]
 
 
 class AbstractNormalForce(eqx.Module):

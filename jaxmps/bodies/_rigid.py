@@ -345,7 +345,9 @@ class RigidBodies(AbstractBodyModel):
     ]:
         """Friction against walls: (velocity of the centre of mass, angular
         momentum about it) after the friction impulse, acting at the contact's mean
-        arm, the friction force, and whether each body slides."""
+        arm, the friction force, and whether each body slides. The law sees the
+        body's velocity relative to the walls it touches (moving walls carry a
+        body that sticks to them)."""
         count = self.count
         if self.friction is None:
             return (
@@ -362,7 +364,7 @@ class RigidBodies(AbstractBodyModel):
             # and drove the tipping on (a cube toppled at tan(theta) = 0.97).
             arm = contact.arm - offset
             omega = jnp.linalg.solve(inertia, momentum_l[..., None])[..., 0]
-            point = velocity + rot.spin_cross(omega, arm)
+            point = velocity + rot.spin_cross(omega, arm) - contact.wall_velocity
             n = contact.normal
             tangential = point - jnp.sum(point * n, -1, keepdims=True) * n
             speed = safe_norm(tangential, contact.touching, placeholder=0.0)
@@ -371,7 +373,7 @@ class RigidBodies(AbstractBodyModel):
             turn = jnp.sum(c * jnp.linalg.solve(inertia, c[..., None])[..., 0], -1)
             inertial = 1.0 / (1.0 / mass + turn)
         else:
-            point, inertial = velocity, mass
+            point, inertial = velocity - contact.wall_velocity, mass
         impulse, sliding = self.friction(
             contact,
             point,
@@ -625,9 +627,20 @@ class RigidBodies(AbstractBodyModel):
         normal = jnp.where(touching[:, None], normal_sum / length[:, None], 0.0)
         pressure_sum = body_sum(jnp.where(touching_p, state.pressure, 0.0))
         touching_count = body_sum(touching_p.astype(state.pressure.dtype))
-        arm = (
-            body_sum(jnp.where(touching_p[:, None], arm_k, 0.0))
-            / jnp.where(touching, touching_count, 1.0)[:, None]
+        per_touching = jnp.where(touching, touching_count, 1.0)[:, None]
+        arm = body_sum(jnp.where(touching_p[:, None], arm_k, 0.0)) / per_touching
+        # The touched walls' velocity: a prescribed motion's (`move_walls` gives
+        # its particles the step's mean velocity), zero for fixed walls.
+        partner_velocity = jnp.stack(
+            [
+                _mean_over(near, take_rows(state.velocity[:, a], pairs.index))
+                for a in range(disc.dim)
+            ],
+            axis=-1,
+        )
+        wall_velocity = (
+            body_sum(jnp.where(touching_p[:, None], partner_velocity, 0.0))
+            / per_touching
         )
         return Contact(
             force=force,
@@ -635,6 +648,7 @@ class RigidBodies(AbstractBodyModel):
             touching=touching,
             pressure_sum=pressure_sum,
             arm=arm,
+            wall_velocity=wall_velocity,
         )
 
 
