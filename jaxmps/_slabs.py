@@ -156,6 +156,12 @@ def simulate_slabs(
     mesh = member_mesh(mesh, devices)
     mesh = Mesh(mesh.devices.reshape(-1), (SLABS,))
     count = int(mesh.devices.size)
+    if any(d.process_index != jax.process_index() for d in mesh.devices.flat):
+        raise ValueError(
+            "simulate_slabs runs on the devices of one process; this mesh holds "
+            "other processes' devices. Pass devices=jax.local_device_count() (or a "
+            "mesh of jax.local_devices())."
+        )
     halo = slab_halo(scene) if halo is None else float(halo)
     start = without_neighbour_lists(state)
     state, frames, layout = start, [], None
