@@ -264,20 +264,21 @@ def test_one_run_split_over_devices_equals_one_device():
 
 
 def test_calibrating_a_batch_over_two_devices_equals_one_device():
-    """Four dam breaks under different gravity share one viscosity: over two
-    devices the batched fit is the one-device fit to 1e-12; its loss is the mean
-    of the four single-curve losses and its plain gradient step the mean of
-    theirs (1e-6: the batch decides neighbour-list reuse jointly)."""
+    """Two dam breaks under different gravity share one viscosity: over two
+    devices (one member each) the batched fit is the one-device fit to 1e-12;
+    its loss is the mean of the two single-curve losses and its plain gradient
+    step the mean of theirs (1e-6: the batch decides neighbour-list reuse
+    jointly)."""
     out = _python(
         """
         import json, numpy as np, optax, jaxmps
         from jaxmps import member_mesh
         from jaxmps.calibration import Curve, Identity
         case = jaxmps.scenes.dam_break(spacing=0.0146, dt=1e-3)
-        g = (9.81, 8.0, 6.5, 5.0)
+        g = (9.81, 5.0)
         gravity = np.array([[0.0, -x] for x in g])
         t = np.linspace(0.005, 0.02, 4)
-        curves = [Curve(times=t, values=0.15 + 0.1 * k * t) for k in range(4)]
+        curves = [Curve(times=t, values=0.15 + 0.5 * k * t) for k in range(2)]
         common = dict(optimiser=optax.sgd(1e-9), iterations=2,
                       initial={"viscosity": 1e-5}, progress=False)
         fields = {"viscosity": Identity()}
