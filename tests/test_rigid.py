@@ -348,6 +348,8 @@ def test_body_scenes_build_and_list():
         jaxmps.scenes.friction_tilt(water_depth=1.0, angle=50.0)
     with pytest.raises(ValueError, match="friction_normal"):
         jaxmps.scenes.friction_tilt(friction_normal="weight")
+    with pytest.raises(ValueError, match="friction_normal"):
+        jaxmps.scenes.block_stack(friction_normal="weight")
     with pytest.raises(ValueError, match="blocks"):
         jaxmps.scenes.block_stack(blocks=0)
 

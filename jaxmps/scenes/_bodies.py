@@ -506,6 +506,7 @@ BLOCK_STACK = {
     "floor_length": 3.0,
     "water_depth": 0.0,
     "friction_torque": True,
+    "friction_normal": "reaction",
     "spacing": 0.05,
     "dim": 2,
     "settle": 0.3,
@@ -528,9 +529,18 @@ def block_stack(**overrides) -> Case:
     Theory: a stacked block slides on the one below where tan(angle) exceeds
     their coefficient, with acceleration g (sin - mu_k cos) (dry), and no block
     tips before tan(angle) = (width - l0) / (height - l0) of the stack above its
-    edge. Probes per block k: `block{k}_x`, `block{k}_y`, `block{k}_angle`.
+    edge. `friction_normal` picks the normal force against walls as in
+    `friction_tilt`; in water the walls' `reaction` carries the water standing on
+    a block (no water gets under a block that rests on the floor's lattice), so
+    seed 002's `submerged_weight` is the one its still-water tests assume.
+    Probes per block k: `block{k}_x`, `block{k}_y`, `block{k}_angle`.
     """
     c = resolve("block_stack", BLOCK_STACK, overrides)
+    if c["friction_normal"] not in _NORMALS:
+        raise ValueError(
+            f"friction_normal={c['friction_normal']!r} is not a normal force; "
+            f"valid: {', '.join(_NORMALS)}."
+        )
     l0, dim = c["spacing"], int(c["dim"])
     if dim != 2:
         raise ValueError("block_stack is 2-D (dim=2).")
@@ -591,7 +601,10 @@ def block_stack(**overrides) -> Case:
         density=c["density"] * c["density_ratio"],
         mu_static=c["mu_static"],
         mu_kinetic=c["mu_kinetic"],
-        friction=Coulomb(torque=bool(c["friction_torque"])),
+        friction=Coulomb(
+            normal=_NORMALS[c["friction_normal"]](),
+            torque=bool(c["friction_torque"]),
+        ),
         pressure="pairs",
     )
     tilted = jnp.asarray(
