@@ -57,11 +57,8 @@ def _step(
 ) -> tuple[State, StepInfo]:
     """One step of `dt` (None: `params.dt`). `params.dt` stays the reference step
     (`PressureInputs.reference_dt`); the stages see `params` with `dt` in it.
-
-    `counted` (None: all) restricts the particle checks (leaving the domain,
-    stability, finiteness, the recorded acceleration) to those particles: a slab
-    of a split run (`jaxmps.simulate_slabs`) steps its halo's copies of other
-    slabs' particles too, and only its own particles' outcome is its to judge."""
+    `counted` (None: all): the particles whose outcome the step judges (`_judged`:
+    a slab of `simulate_slabs` steps its halo's copies too)."""
     reference_dt = params.dt
     if dt is not None:
         params = eqx.tree_at(lambda p: p.dt, params, dt)
@@ -139,22 +136,35 @@ def _step(
             new = model.advance(disc, params, new, load)
 
     with jax.named_scope("result"):
-        info = _info(solution, nbrs_k, nbrs)
-        outside = nbrs_k.outside | nbrs.outside
-        if counted is not None:
-            outside &= counted
-        new, info = _take_out_escaped(scene, new, info, outside)
-        forced = new.velocity if scene.solver.pressure_is_force else u_forced
-        new = _record(
-            scene,
-            params,
-            new,
-            info,
-            pool_short,
-            mobile & new.active if counted is None else mobile & new.active & counted,
-            (forced - state.velocity) / params.dt,
-            counted,
-        )
+        searches = (nbrs_k, nbrs)
+        args = (new, solution, searches, pool_short, mobile, u_forced, counted)
+        return _judged(scene, params, state, *args)
+
+
+def _judged(
+    scene: Scene,
+    params: Params,
+    state: State,
+    new: State,
+    solution: fluid.PressureSolution,
+    searches: tuple[neighbours.Neighbours, neighbours.Neighbours],
+    pool_short: Bool[Array, ""],
+    mobile: Mask,
+    u_forced: Velocities,
+    counted: Mask | None,
+) -> tuple[State, StepInfo]:
+    """The step's diagnostics, the escaped fluid taken out and the first failure
+    recorded, judged on the `counted` particles (None: all)."""
+    nbrs_k, nbrs = searches
+    info = _info(solution, nbrs_k, nbrs)
+    outside = nbrs_k.outside | nbrs.outside
+    mobile = mobile & new.active
+    if counted is not None:
+        outside, mobile = outside & counted, mobile & counted
+    new, info = _take_out_escaped(scene, new, info, outside)
+    forced = new.velocity if scene.solver.pressure_is_force else u_forced
+    accel = (forced - state.velocity) / params.dt
+    new = _record(scene, params, new, info, pool_short, mobile, accel, counted)
     return new, info
 
 

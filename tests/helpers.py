@@ -1,5 +1,11 @@
 """Test helpers: brute-force references and small scenes."""
 
+import os
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
 import numpy as np
 
 import jaxmps
@@ -77,3 +83,28 @@ def lattice_pairs(
     pairs = make_pairs(nbrs.index, jnp.asarray(x), scene.weight, scene.r_e)
     interior = np.all((x > 3 * l0) & (x < (size - 3) * l0), axis=1)
     return scene, x, pairs, interior
+
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def python_with_devices(code: str, devices: int = 1, timeout: float = 300, env=None):
+    """Run `code` in a fresh float64 interpreter with `devices` CPU devices
+    (XLA_FLAGS must be set before JAX starts); its stdout."""
+    environment = {
+        **os.environ,
+        "XLA_FLAGS": f"--xla_force_host_platform_device_count={devices}",
+        "JAX_PLATFORMS": "cpu",
+        "JAX_ENABLE_X64": "1",
+        "PYTHONPATH": str(ROOT),
+        **(env or {}),
+    }
+    done = subprocess.run(
+        [sys.executable, "-c", textwrap.dedent(code)],
+        capture_output=True,
+        text=True,
+        timeout=timeout,
+        env=environment,
+    )
+    assert done.returncode == 0, done.stderr[-3000:]
+    return done.stdout

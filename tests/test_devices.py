@@ -8,11 +8,11 @@ import os
 import socket
 import subprocess
 import sys
-import textwrap
 from pathlib import Path
 
 import numpy as np
 import pytest
+from helpers import python_with_devices
 
 import jaxmps
 from jaxmps.cli import main
@@ -22,23 +22,7 @@ ROOT = Path(__file__).resolve().parents[1]
 
 def _python(code: str, devices: int = 1, timeout: float = 300, env=None):
     """Run `code` in a fresh interpreter with `devices` CPU devices; its stdout."""
-    environment = {
-        **os.environ,
-        "XLA_FLAGS": f"--xla_force_host_platform_device_count={devices}",
-        "JAX_PLATFORMS": "cpu",
-        "JAX_ENABLE_X64": "1",
-        "PYTHONPATH": str(ROOT),
-        **(env or {}),
-    }
-    done = subprocess.run(
-        [sys.executable, "-c", textwrap.dedent(code)],
-        capture_output=True,
-        text=True,
-        timeout=timeout,
-        env=environment,
-    )
-    assert done.returncode == 0, done.stderr[-3000:]
-    return done.stdout
+    return python_with_devices(code, devices, timeout, env)
 
 
 def test_sweep_over_four_devices_equals_one_device():

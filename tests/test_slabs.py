@@ -6,18 +6,13 @@ bad input gets. Several CPU devices need XLA_FLAGS before JAX starts, so those
 checks run in subprocesses."""
 
 import json
-import os
-import subprocess
-import sys
 import textwrap
-from pathlib import Path
 
 import numpy as np
 import pytest
+from helpers import python_with_devices
 
 import jaxmps
-
-ROOT = Path(__file__).resolve().parents[1]
 
 # A dam break long enough for four slabs wider than the halo (l0 = 1 cm).
 _CASE = """
@@ -34,24 +29,10 @@ def apart(a, b, active):
 
 
 def _python(code: str, devices: int, timeout: float = 600):
-    """Run `code` in a fresh float64 interpreter with `devices` CPU devices; the
-    JSON it prints last."""
-    environment = {
-        **os.environ,
-        "XLA_FLAGS": f"--xla_force_host_platform_device_count={devices}",
-        "JAX_PLATFORMS": "cpu",
-        "JAX_ENABLE_X64": "1",
-        "PYTHONPATH": str(ROOT),
-    }
-    done = subprocess.run(
-        [sys.executable, "-c", _CASE + textwrap.dedent(code)],
-        capture_output=True,
-        text=True,
-        timeout=timeout,
-        env=environment,
-    )
-    assert done.returncode == 0, done.stderr[-3000:]
-    return json.loads(done.stdout.strip().splitlines()[-1])
+    """Run `code` after `_CASE` in a fresh float64 interpreter with `devices` CPU
+    devices; the JSON it prints last."""
+    out = python_with_devices(_CASE + textwrap.dedent(code), devices, timeout)
+    return json.loads(out.strip().splitlines()[-1])
 
 
 def test_four_slabs_equal_one_device_and_a_narrow_halo_does_not():

@@ -333,6 +333,65 @@ _NORMALS = {
 }
 
 
+def _stacked_blocks(c, l0: float, length: float) -> tuple[list, float, dict]:
+    """`block_stack`'s blocks (particle positions of each), their top and their
+    sizes rounded to the lattice (`block_size`, `block_height`, `base_width`): stacked
+    on the lowest (`base_width` wide, the others centred on it) or in a row with
+    `gap` between them, from 0.1 of the floor (at most 0.5 m) along it."""
+    count = int(c["blocks"])
+    a = whole(c["block_size"], l0)
+    tall = a if c["block_height"] is None else whole(c["block_height"], l0)
+    gap = whole(c["gap"], l0) if c["gap"] > 0 else 0.0
+    x0 = whole(min(0.5, 0.1 * length), l0)
+    base = a if c["base_width"] is None else whole(c["base_width"], l0)
+    widths = [a] * count
+    if c["layout"] == "stack":
+        widths[0] = base
+        shift = whole(max(base - a, 0.0) / 2, l0)
+        corners = [(x0 + (shift if k else 0.0), k * tall) for k in range(count)]
+        top, right = count * tall, x0 + max(base, a + shift)
+    else:
+        corners = [(x0 + k * (a + gap), 0.0) for k in range(count)]
+        top, right = tall, x0 + count * a + (count - 1) * gap
+    if length < right + 2 * l0:
+        raise ValueError(
+            f"floor_length={length} is too short for the blocks (they reach "
+            f"{right:g} m): raise floor_length."
+        )
+    blocks = [
+        geometry.block([x, y], [x + w, y + tall], l0)
+        for (x, y), w in zip(corners, widths)
+    ]
+    return blocks, top, {"block_size": a, "block_height": tall, "base_width": base}
+
+
+def _tilt_body_pressure(c, depth: float) -> str:
+    """`friction_tilt`'s `body_pressure`, `auto` resolved: `fluid` in water unless
+    the normal force is the walls' reaction (which needs the pair form)."""
+    if c["body_pressure"] not in ("auto", "fluid", "pairs"):
+        raise ValueError(
+            "body_pressure must be 'auto', 'fluid' or 'pairs', got "
+            f"{c['body_pressure']!r}."
+        )
+    if c["body_pressure"] != "auto":
+        return c["body_pressure"]
+    wet = depth > 0 and c["friction_normal"] != "reaction"
+    return "fluid" if wet else "pairs"
+
+
+def _coulomb(c) -> Coulomb:
+    """The Coulomb law of the settings `friction_normal` and `friction_torque`
+    (ValueError naming a normal force that does not exist)."""
+    if c["friction_normal"] not in _NORMALS:
+        raise ValueError(
+            f"friction_normal={c['friction_normal']!r} is not a normal force; "
+            f"valid: {', '.join(_NORMALS)}."
+        )
+    return Coulomb(
+        normal=_NORMALS[c["friction_normal"]](), torque=bool(c["friction_torque"])
+    )
+
+
 def _tilted_gravity(dim: int, g: float, degrees: float) -> np.ndarray:
     a = math.radians(degrees)
     out = np.zeros(dim)
@@ -434,11 +493,7 @@ def friction_tilt(**overrides) -> Case:
         lower_box, [x0 + a] + ([2 * l0 + a] if dim == 3 else []) + [tall], l0
     )
     height = 1.2 * tall
-    if c["friction_normal"] not in _NORMALS:
-        raise ValueError(
-            f"friction_normal={c['friction_normal']!r} is not a normal force; "
-            f"valid: {', '.join(_NORMALS)}."
-        )
+    friction = _coulomb(c)
     fluid = np.zeros((0, dim))
     depth = float(c["water_depth"])
     if depth > 0:
@@ -448,17 +503,7 @@ def friction_tilt(**overrides) -> Case:
     walls, wall_kind = geometry.tank(
         [0.0] * dim, [length] + across + [height], l0, layers=boundary_layers(c)
     )
-    friction = Coulomb(
-        normal=_NORMALS[c["friction_normal"]](), torque=bool(c["friction_torque"])
-    )
-    if c["body_pressure"] not in ("auto", "fluid", "pairs"):
-        raise ValueError(
-            "body_pressure must be 'auto', 'fluid' or 'pairs', got "
-            f"{c['body_pressure']!r}."
-        )
-    if c["body_pressure"] == "auto":
-        wet = depth > 0 and c["friction_normal"] != "reaction"
-        c = {**c, "body_pressure": "fluid" if wet else "pairs"}
+    c = {**c, "body_pressure": _tilt_body_pressure(c, depth)}
     scene, params, state = _body_case(
         {**c, "friction": friction, "pressure": c["body_pressure"]},
         fluid,
@@ -536,41 +581,14 @@ def block_stack(**overrides) -> Case:
     Probes per block k: `block{k}_x`, `block{k}_y`, `block{k}_angle`.
     """
     c = resolve("block_stack", BLOCK_STACK, overrides)
-    if c["friction_normal"] not in _NORMALS:
-        raise ValueError(
-            f"friction_normal={c['friction_normal']!r} is not a normal force; "
-            f"valid: {', '.join(_NORMALS)}."
-        )
+    friction = _coulomb(c)
     l0, dim = c["spacing"], int(c["dim"])
     if dim != 2:
         raise ValueError("block_stack is 2-D (dim=2).")
     if c["layout"] not in ("stack", "row"):
         raise ValueError(f"layout must be 'stack' or 'row', got {c['layout']!r}.")
-    count = int(c["blocks"])
-    a = whole(c["block_size"], l0)
-    tall = a if c["block_height"] is None else whole(c["block_height"], l0)
-    gap = whole(c["gap"], l0) if c["gap"] > 0 else 0.0
     length = whole(c["floor_length"], l0)
-    x0 = whole(min(0.5, 0.1 * length), l0)
-    base = a if c["base_width"] is None else whole(c["base_width"], l0)
-    widths = [a] * count
-    if c["layout"] == "stack":
-        widths[0] = base
-        shift = whole(max(base - a, 0.0) / 2, l0)
-        corners = [(x0 + (shift if k else 0.0), k * tall) for k in range(count)]
-        top, right = count * tall, x0 + max(base, a + shift)
-    else:
-        corners = [(x0 + k * (a + gap), 0.0) for k in range(count)]
-        top, right = tall, x0 + count * a + (count - 1) * gap
-    if length < right + 2 * l0:
-        raise ValueError(
-            f"floor_length={length} is too short for the blocks (they reach "
-            f"{right:g} m): raise floor_length."
-        )
-    blocks = [
-        geometry.block([x, y], [x + w, y + tall], l0)
-        for (x, y), w in zip(corners, widths)
-    ]
+    blocks, top, sizes = _stacked_blocks(c, l0, length)
     box = np.concatenate(blocks)
     body = np.concatenate([np.full(len(b), k) for k, b in enumerate(blocks)])
     height = 1.2 * top
@@ -601,10 +619,7 @@ def block_stack(**overrides) -> Case:
         density=c["density"] * c["density_ratio"],
         mu_static=c["mu_static"],
         mu_kinetic=c["mu_kinetic"],
-        friction=Coulomb(
-            normal=_NORMALS[c["friction_normal"]](),
-            torque=bool(c["friction_torque"]),
-        ),
+        friction=friction,
         pressure="pairs",
     )
     tilted = jnp.asarray(
@@ -615,7 +630,7 @@ def block_stack(**overrides) -> Case:
         state = _spun_up(scene, params, state, c["settle"], tilted)
     probes = tuple(
         probe
-        for k in range(count)
+        for k in range(len(blocks))
         for probe in (
             BodyValue(f"block{k}_x", k, "centre", 0),
             BodyValue(f"block{k}_y", k, "centre", 1),
@@ -624,9 +639,7 @@ def block_stack(**overrides) -> Case:
     )
     config = {
         **c,
-        "block_size": a,
-        "block_height": tall,
-        "base_width": base,
+        **sizes,
         "floor_length": length,
     }
     return Case("block_stack", scene, params, state, probes, float(c["t_end"]), config)
