@@ -48,11 +48,13 @@ def add_grains(
     packed_density: float | None = None,
     courant: float = bodies.Grains.courant,
     dashpot_ramp: float = bodies.Grains.dashpot_ramp,
+    on_bodies: bool = True,
+    on_fluid: bool = False,
 ) -> tuple[Scene, Params, State]:
     """Turn particles of a built case into DEM grains (seed 002 §5): spheres of
     one particle each (`Kind.SEDIMENT`), in contact with one another and with the
     case's wall particles and the particles of its rigid and elastic bodies
-    (which do not feel them), hidden from the fluid, which drags and lifts them
+    (which feel them back), hidden from the fluid, which drags and lifts them
     (`jaxmps.bodies.Grains`). Add the bodies first.
 
     Args:
@@ -87,6 +89,12 @@ def add_grains(
         dashpot_ramp: the share of the contact distance over which the dashpots
             engage (0: at once, as seed 002; a calibration by gradient may want
             a smooth onset, `Grains.dashpot_ramp`).
+        on_bodies: whether the rigid and elastic bodies the grains touch feel
+            their contact forces (True: blocks rest on grains; False: seed
+            002's detached grains, which do not act on blocks).
+        on_fluid: whether the fluid feels the grains' drag and lift back
+            (False: seed 002, "no reaction on the fluid"; True keeps the
+            momentum of fluid and grains together, see `Grains`).
 
     Returns:
         The new (scene, params, state).
@@ -142,6 +150,13 @@ def add_grains(
     mass = (
         float(grain_params.density) - (float(params.density) if submerged else 0.0)
     ) * bodies.sphere_volume(sizes)
+    body_kinds = [int(Kind.RIGID), int(Kind.ELASTIC)]
+    touches_bodies = bool(np.any(np.isin(kind[walls], body_kinds)))
+    if on_fluid and not submerged:
+        raise ValueError(
+            "on_fluid=True (scene setting on_fluid) asks the fluid to feel the "
+            "grains' drag, but this case has no fluid: leave on_fluid=False."
+        )
     if substeps is None:
         step = bodies.rule_step(mass.min(), float(grain_params.stiffness))
         substeps = max(1, math.ceil(float(params.dt) / step * (1 - 1e-9)))
@@ -153,6 +168,8 @@ def add_grains(
         contact_capacity=k,
         substeps=int(substeps),
         submerged=submerged,
+        on_bodies=bool(on_bodies) and touches_bodies,
+        on_fluid=bool(on_fluid),
         packed_density=float(scene.n0 if packed_density is None else packed_density),
         courant=float(courant),
         dashpot_ramp=float(dashpot_ramp),
@@ -167,6 +184,7 @@ def add_grains(
         spin=jnp.zeros((m, rot.spin_size(dim)), dtype),
         fluid_force=jnp.zeros((m, dim), dtype),
         contact_count=jnp.zeros((m,), jnp.int32),
+        reaction=jnp.zeros((scene.capacity if model.reacts else 0, dim), dtype),
     )
     kind[index] = int(Kind.SEDIMENT)
     new_params = dataclasses.replace(params, grains=grain_params)
@@ -174,6 +192,8 @@ def add_grains(
         state, kind=jnp.asarray(kind, state.kind.dtype), grains=sub
     )
     model.check(new_params, new_state)
+    if scene.time_step is None:
+        model.check_body_step(new_params, new_state)
     return dataclasses.replace(scene, grains=model), new_params, new_state
 
 
@@ -196,9 +216,10 @@ def _contact_search(
     grid (with its candidate capacity) and search radius."""
     l0 = scene.spacing
     # Choice: grains touch every solid particle that is not a grain (walls, and
-    # rigid and elastic bodies as spheres of l0 moving with them), and the
-    # bodies do not feel them: seed 002's detached grains "do not affect the
-    # fluid or the rigid bodies".
+    # rigid and elastic bodies as spheres of l0 moving with them). Seed 002's
+    # detached grains "do not affect the fluid or the rigid bodies", its blocks
+    # rest on attached grains acting as walls; here the bodies feel the grains'
+    # contacts (`add_grains(on_bodies=True)`), so that they rest on a bed.
     solid = (Kind.WALL, Kind.RIGID, Kind.ELASTIC)
     walls = np.nonzero(active & np.isin(kind, [int(k) for k in solid]))[0]
     skin = 2.0 * courant * l0

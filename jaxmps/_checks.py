@@ -82,6 +82,8 @@ def _check_body_models(scene: Scene, params: Params, state: State) -> None:
             )
     for model in scene.body_models:
         model.check(params, state)
+    if scene.grains is not None and scene.time_step is None:
+        scene.grains.check_body_step(params, state)
 
 
 def _check_params_shapes(scene: Scene, params: Params) -> None:

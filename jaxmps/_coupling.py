@@ -48,6 +48,11 @@ class Coupling(eqx.Module):
             fluid through drag and lift alone and act on it through nothing):
             every pair with one of them weighs nothing in the fluid stages
             (`visible`); None: none, shape (n,).
+        force: a force per unit volume [N/m^3] the body models exert on
+            particles from outside the fluid stages (the DEM grains' contacts on
+            body particles and their drag on the fluid, from the last step),
+            added to the prediction of mobile particles as dt force / density;
+            None: none, shape (n, d).
         between_bodies: whether the pressure stage splits out the part of the
             pair form that other bodies exert (`FluidLoad.body_gradient`, which
             friction between bodies needs); static.
@@ -58,6 +63,7 @@ class Coupling(eqx.Module):
     as_fluid: Bool[Array, " n"]
     reference_density: Float[Array, " n"] | None = None
     hidden: Bool[Array, " n"] | None = None
+    force: Float[Array, "n d"] | None = None
     between_bodies: bool = eqx.field(static=True, default=False)
 
     @property

@@ -102,6 +102,11 @@ class GrainState(eqx.Module):
         fluid_force: the drag and lift on each grain in the last step [N],
             shape (m, d).
         contact_count: each grain's contacts at the end of the last step, (m,).
+        reaction: the force per unit volume the grains exerted in the last step
+            on every particle [N/m^3] (their contacts on walls and bodies, their
+            drag and lift on the fluid where they push it back), which the next
+            step's prediction applies, shape (n, d); (0, d) where the grains act
+            on nothing (`Grains.reacts`).
     """
 
     index: Int[Array, " m"]
@@ -112,6 +117,7 @@ class GrainState(eqx.Module):
     spin: Float[Array, "m a"]
     fluid_force: Float[Array, "m d"]
     contact_count: Int[Array, " m"]
+    reaction: Float[Array, "r d"]
 
 
 class State(eqx.Module):

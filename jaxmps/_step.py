@@ -238,6 +238,7 @@ def _coupling(scene: Scene, params: Params, state: State) -> Coupling | None:
             as_fluid=jnp.where(part.owned, part.as_fluid, merged.as_fluid),
             reference_density=_merged_reference(merged, part),
             hidden=_merged_hidden(merged, part),
+            force=_merged_force(merged, part),
             between_bodies=merged.between_bodies or part.between_bodies,
         )
     return merged
@@ -248,6 +249,13 @@ def _merged_hidden(merged: Coupling, part: Coupling) -> Mask | None:
     if merged.hidden is None or part.hidden is None:
         return part.hidden if merged.hidden is None else merged.hidden
     return merged.hidden | part.hidden
+
+
+def _merged_force(merged: Coupling, part: Coupling) -> Velocities | None:
+    """The merged `Coupling.force`: the sum of the models' forces."""
+    if merged.force is None or part.force is None:
+        return part.force if merged.force is None else merged.force
+    return merged.force + part.force
 
 
 def _merged_reference(merged: Coupling, part: Coupling) -> Field | None:

@@ -172,12 +172,15 @@ class Contacts(eqx.Module):
         torque: the sum of their torques about its centre [N m], (m, a).
         shear: the slots' tangential springs after this sub-step [m], (d, m, k).
         count: each grain's contacts (overlapping partners), (m,).
+        wall_force: the force the grains exert on each wall particle, each
+            grain's share times its `reaction_weight`, (w, d); None where not asked.
     """
 
     force: Float[Array, "m d"]
     torque: Float[Array, "m a"]
     shear: Float[Array, "d m k"]
     count: Int[Array, " m"]
+    wall_force: Float[Array, "w d"] | None = None
 
 
 def _cross_2d(a: PairVectors, b: PairVectors) -> Float[Array, "m k"]:
@@ -243,12 +246,15 @@ def contact_forces(
     walls: _Walls,
     material: _Material,
     h: Scalar,
+    reaction_weight: Float[Array, " m"] | None = None,
 ) -> Contacts:
     """The contact forces and torques on the grains (see `Grains`), and the
     tangential springs integrated over a sub-step of `h` [s]. A slot holds a
     partner of the DEM set (grains 0..m-1, then walls); partners are spheres
     of their diameter (walls: `walls.diameter`), walls of infinite mass and no
-    spin."""
+    spin. With `reaction_weight` (one per grain), also the force on each wall
+    particle: minus the slots' forces on the grains, each times its grain's
+    weight."""
     m, dim = x.shape
     w = walls.position.shape[0]
     total = m + w
@@ -327,10 +333,21 @@ def contact_forces(
     size = safe_norm(trial, touching, placeholder=0.0)
     scale = jnp.where(size > limit, limit / jnp.where(size > 0, size, 1.0), 1.0)
     friction = tuple(jnp.where(touching, f * scale, 0.0) for f in trial)
-    force = jnp.stack(
-        [jnp.sum(f - push * n, axis=1) for f, n in zip(friction, normal, strict=True)],
-        axis=-1,
-    )
+    on_grain = [f - push * n for f, n in zip(friction, normal, strict=True)]
+    force = jnp.stack([jnp.sum(f, axis=1) for f in on_grain], axis=-1)
+    wall_force = None
+    if reaction_weight is not None:
+        # Newton's third law, slot by slot; grain partners and empty slots drop.
+        target = jnp.where(is_wall & touching, partner - m, w)
+        wall_force = jnp.stack(
+            [
+                jnp.zeros((w,), f.dtype)
+                .at[target]
+                .add(-f * reaction_weight[:, None], mode="drop")
+                for f in on_grain
+            ],
+            axis=-1,
+        )
     lever = tuple(radius_i * n for n in normal)
     if dim == 2:
         torque = jnp.sum(_cross_2d(lever, friction), axis=1)[:, None]
@@ -354,4 +371,5 @@ def contact_forces(
         torque=torque,
         shear=jnp.stack(spring),
         count=jnp.sum(touching, axis=1, dtype=jnp.int32),
+        wall_force=wall_force,
     )

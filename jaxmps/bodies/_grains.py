@@ -4,10 +4,12 @@ and carried by the fluid through drag and lift.
 
 The grains are hidden from the fluid (`Coupling.hidden`): the fluid flows through
 them as if they were not there, and they feel it through the drag and lift of the
-fluid velocity around them (seed 002: "no reaction on the fluid"), with buoyancy
-as their submerged weight. Each step, after the fluid stages, `Grains.advance`
-finds each grain's contact candidates, carries the tangential springs of the
-contacts that persist, and integrates the grains in sub-steps by symplectic Euler.
+fluid velocity around them, with buoyancy as their submerged weight. They push
+back on the particles of rigid and elastic bodies they touch, and, where asked
+(`Grains.on_fluid`; seed 002 has "no reaction on the fluid"), on the fluid that
+drags them. Each step, after the fluid stages, `Grains.advance` finds each
+grain's contact candidates, carries the tangential springs of the contacts that
+persist, and integrates the grains in sub-steps by symplectic Euler.
 """
 
 import dataclasses
@@ -71,7 +73,20 @@ class Grains(AbstractBodyModel):
     velocity u_f of the fluid around it, a w_s-weighted mean over its fluid
     neighbours after the fluid stages of the step, whose horizontal part is
     reduced by (1 - n_s / n_s0) where solid neighbours (grains, walls) crowd it
-    (seed 002 eq. 3.80). The grains do not act on the fluid.
+    (seed 002 eq. 3.80).
+
+    The grains act back (`reacts`) through `Coupling.force`, one step later: the
+    mean over the step's sub-steps of their contact forces on body particles
+    (`on_bodies`: Newton's third law slot by slot, so blocks rest on grains and
+    are rubbed by them), and, with `on_fluid`, minus their drag and lift, shared
+    among the fluid neighbours of each grain by the w_s weights of its u_f. A
+    grain stands for a sphere in 3-D; in 2-D (a sheet of unit depth) for a row of
+    spheres of its diameter d along the third axis, so that its force per unit
+    depth is F / d. # Choice: the seed's 2-D grains are spheres whose fluid and
+    contact forces are a sphere's; their row at d apart fills the plane's packed
+    bed as the seed's figures show. The lag of one step keeps the fluid and body
+    stages as they are (the grains advance last); the impulse of a step reaches
+    its partner whole, so momentum is kept over an exchange that ends.
 
     Attributes:
         count: number of grains m.
@@ -84,6 +99,9 @@ class Grains(AbstractBodyModel):
         substeps: DEM sub-steps per step (static).
         submerged: whether the grains lie in water (submerged density, fluid
             forces).
+        on_bodies: whether the grains can touch body particles (rigid, elastic),
+            which then feel their contacts.
+        on_fluid: whether the fluid feels the grains' drag and lift back.
         search_radius: the contact search radius [m]: the largest contact
             distance and a skin that covers a step's motion of both partners.
         packed_density: n_s0, the solid number density of a packed bed, for the
@@ -102,6 +120,8 @@ class Grains(AbstractBodyModel):
     contact_capacity: int = 16
     substeps: int = 1
     submerged: bool = False
+    on_bodies: bool = False
+    on_fluid: bool = False
     packed_density: float = 1.0
     poisson_ratio: float = 0.3
     courant: float = 0.2
@@ -127,13 +147,21 @@ class Grains(AbstractBodyModel):
             raise ValueError("Grains.poisson_ratio must lie in (-1, 0.5).")
         if not 0.0 <= self.dashpot_ramp < 1.0:
             raise ValueError("Grains.dashpot_ramp must lie in [0, 1).")
+        if self.on_fluid and not self.submerged:
+            raise ValueError("Grains.on_fluid needs grains in water (submerged).")
+
+    @property
+    def reacts(self) -> bool:
+        """Whether the grains act on other particles (`GrainState.reaction`)."""
+        return self.on_bodies or self.on_fluid
 
     def owner(self, state: State) -> Int[Array, " n"]:
         """Grains belong to no body (-1 everywhere)."""
         return jnp.full(state.position.shape[:1], -1, jnp.int32)
 
     def coupling(self, disc: Discretisation, params: Params, state: State) -> Coupling:
-        """The grains are hidden from the fluid; nothing else changes."""
+        """The grains are hidden from the fluid; what they pushed in the last
+        step pushes back (`reacts`)."""
         del disc
         n = state.position.shape[0]
         hidden = jnp.zeros((n,), bool).at[state.grains.index].set(True)
@@ -142,6 +170,7 @@ class Grains(AbstractBodyModel):
             owner=self.owner(state),
             as_fluid=jnp.zeros((n,), bool),
             hidden=hidden,
+            force=state.grains.reaction if self.reacts else None,
         )
 
     def effective_density(self, params: Params):
@@ -161,13 +190,40 @@ class Grains(AbstractBodyModel):
         lightest = jnp.min(self.mass(params, diameter))
         return 2.0 * rule_step(lightest, params.grains.stiffness)
 
+    def body_limit(self, params: Params, diameter, dim: int, xp=jnp):
+        """The largest dt [s] at which a body particle feels the grains' contacts
+        stably one step late (`on_bodies`; inf without): omega dt <= 1 for the
+        lightest body particle (rho_b l0^d, per unit depth in 2-D) on one contact
+        of stiffness k_n (k_n / d per unit depth in 2-D), omega^2 = k / m.
+        # Choice: one particle's mass bounds the body's share per contact from
+        # below (a rigid body spreads a contact over all its particles), so the
+        # limit is safe for elastic particles and conservative for blocks: a
+        # 2 x 4-particle block on grains measured stable up to omega dt = 2.6 and
+        # unstable (a Courant failure) from 5.2.
+        `xp` is jnp under a trace, numpy for the check before a run."""
+        if not self.on_bodies:
+            return xp.inf
+        densities = [
+            xp.min(xp.asarray(getattr(params, name).density))
+            for name in ("rigid", "elastic")
+            if getattr(params, name) is not None
+        ]
+        lightest = densities[0] if len(densities) == 1 else xp.minimum(*densities)
+        mass = lightest * self.spacing**dim
+        stiffness = xp.asarray(params.grains.stiffness)
+        if dim == 2:
+            stiffness = stiffness / xp.min(xp.asarray(diameter))
+        return xp.sqrt(mass / stiffness)
+
     def time_step_limit(
         self, disc: Discretisation, params: Params, state: State
     ) -> Scalar:
-        """The largest dt [s]: `substeps` sub-steps within `substep_limit`, and a
-        step that moves the fastest grain by at most `courant` l0."""
+        """The largest dt [s]: `substeps` sub-steps within `substep_limit`, a
+        step that moves the fastest grain by at most `courant` l0, and the
+        bodies' `body_limit`."""
         gs = state.grains
         steps = self.substeps * self.substep_limit(params, gs.diameter)
+        steps = jnp.minimum(steps, self.body_limit(params, gs.diameter, disc.dim))
         velocity = state.velocity[gs.index]
         speed = jnp.max(jnp.sqrt(jnp.sum(velocity**2, axis=-1)))
         courant = jnp.where(
@@ -224,6 +280,28 @@ class Grains(AbstractBodyModel):
                 "(`add_grains(..., substeps=...)`, scene setting `substeps`)."
             )
 
+    def check_body_step(self, params: Params, state: State) -> None:
+        """Refuse a concrete dt beyond `body_limit` (a run of fixed steps; under
+        `jaxmps.Adaptive` the limit bounds every step instead)."""
+        bodies = [getattr(params, name) for name in ("rigid", "elastic")]
+        densities = [b.density for b in bodies if b is not None]
+        values = (params.dt, params.grains.stiffness, state.grains.diameter)
+        if not self.on_bodies or not is_concrete(*values, *densities):
+            return
+        dt, stiffness = float(params.dt), float(params.grains.stiffness)
+        dim = state.position.shape[1]
+        limit = float(self.body_limit(params, state.grains.diameter, dim, np))
+        if dt > limit * (1 + 1e-9):
+            raise ValueError(
+                f"Params.dt = {dt:.3g} s is beyond the limit {limit:.3g} s at which "
+                "the bodies feel the grains' contacts stably (one body particle of "
+                f"the lightest body on one contact of stiffness={stiffness:.4g} N/m, "
+                "omega dt <= 1): lower dt (or let the run choose it, scene "
+                "setting dt='adaptive'), lower Params.grains.stiffness, make the "
+                "bodies denser, or let the bodies not feel the grains "
+                "(`add_grains(..., on_bodies=False)`)."
+            )
+
     def advance(
         self, disc: Discretisation, params: Params, state: State, load: FluidLoad
     ) -> State:
@@ -252,11 +330,22 @@ class Grains(AbstractBodyModel):
         mass = self.mass(params, gs.diameter)
         material = _Material.of(self, params, mass)
         h = dt / self.substeps
+        # In 2-D a grain is a row of spheres d apart: per unit depth, F / d.
+        reach = 1.0 / gs.diameter if disc.dim == 2 else jnp.ones_like(gs.diameter)
 
         def substep(carry, _):
             x, v, spin, shear = carry
             contact = contact_forces(
-                x, v, spin, gs.diameter, partner, shear, walls, material, h
+                x,
+                v,
+                spin,
+                gs.diameter,
+                partner,
+                shear,
+                walls,
+                material,
+                h,
+                reach if self.reacts else None,
             )
             fluid = (
                 fluid_force(
@@ -275,15 +364,19 @@ class Grains(AbstractBodyModel):
             x = x + h * v
             inertia = 0.1 * mass * gs.diameter**2
             spin = spin + h * contact.torque / inertia[:, None]
-            return (x, v, spin, contact.shear), (fluid, contact.count)
+            out = (fluid, contact.count, contact.wall_force)
+            return (x, v, spin, contact.shear), out
 
         carry = (x, v, gs.spin, shear)
-        (x, v, spin, shear), (fluid, count) = jax.lax.scan(
+        (x, v, spin, shear), (fluid, count, on_walls) = jax.lax.scan(
             substep, carry, None, length=self.substeps
         )
         active = state.active[gs.index]
         x = jnp.where(active[:, None], x, state.position[gs.index])
         v = jnp.where(active[:, None], v, 0.0)
+        reaction = gs.reaction
+        if self.reacts:
+            reaction = self._reaction(disc, state, load, on_walls, fluid, reach)
         grains = dataclasses.replace(
             gs,
             partner=partner,
@@ -291,9 +384,11 @@ class Grains(AbstractBodyModel):
             spin=spin,
             fluid_force=fluid[-1],
             contact_count=count[-1],
+            reaction=reaction,
         )
         speed = jnp.sqrt(jnp.max(jnp.sum(v**2, axis=-1)))
         limit = self.substeps * self.substep_limit(params, gs.diameter)
+        limit = jnp.minimum(limit, self.body_limit(params, gs.diameter, disc.dim))
         beyond = (dt > limit * (1 + 1e-9)) | (speed * dt > self.courant * self.spacing)
         result = update_result(state.result, overflow, Result.contact_overflow)
         result = update_result(result, beyond, Result.step_too_large)
@@ -304,6 +399,25 @@ class Grains(AbstractBodyModel):
             grains=grains,
             result=result,
         )
+
+    def _reaction(self, disc, state, load, on_walls, fluid, reach):
+        """What the grains exerted over the step, per unit volume of each
+        particle [N/m^3]: the sub-steps' mean contact force on each wall
+        particle, and minus the mean drag and lift on each grain shared among
+        its fluid neighbours by their w_s weights (`on_fluid`)."""
+        gs = state.grains
+        volume = disc.spacing**disc.dim
+        n, dim = state.position.shape
+        reaction = jnp.zeros((n, dim), state.position.dtype)
+        reaction = reaction.at[gs.walls].add(jnp.mean(on_walls, axis=0) / volume)
+        if self.on_fluid:
+            index, share, _ = self._fluid_shares(disc, state, load)
+            push = -jnp.mean(fluid, axis=0) * reach[:, None] / volume
+            target = jnp.where(share > 0, index, n)
+            for a in range(dim):
+                part = share * push[:, a, None]
+                reaction = reaction.at[target, a].add(part, mode="drop")
+        return reaction
 
     def _candidates(self, state: State, x, walls: "_Walls"):
         """Each grain's contact candidates at the step's start (grains and walls
@@ -327,13 +441,10 @@ class Grains(AbstractBodyModel):
         )
         return partner, shear, overflow
 
-    def _fluid_velocity(
-        self, disc: Discretisation, state: State, load: FluidLoad, up
-    ) -> Float[Array, "m d"]:
-        """u_f of each grain (seed 002 eq. 3.78-3.80): the w_s-weighted mean
-        velocity of its fluid neighbours (0 with none), its horizontal part
-        times 1 - min(n_s / n_s0, 1), n_s the number density of its solid
-        neighbours (grains, walls and dummies)."""
+    def _fluid_shares(self, disc: Discretisation, state: State, load: FluidLoad):
+        """Each grain's neighbour slots and their shares w_s / sum w_s over its
+        fluid neighbours (0 elsewhere, all 0 with none), and the number density
+        n_s of its solid neighbours (grains, walls and dummies)."""
         gs = state.grains
         index = load.pairs.index[gs.index]
         n = state.position.shape[0]
@@ -350,18 +461,26 @@ class Grains(AbstractBodyModel):
         solid_kinds = (Kind.SEDIMENT, Kind.WALL, Kind.DUMMY)
         solid = take_rows(active & is_kind(kind, solid_kinds), index) & near
         w_s = jnp.where(fluid, wendland_like(distance, disc.r_e), 0.0)
-        total = jnp.sum(w_s, axis=1)
+        total = jnp.sum(w_s, axis=1, keepdims=True)
+        share = w_s / jnp.where(total > 0, total, 1.0)
+        n_s = jnp.sum(disc.weight(distance, solid, disc.r_e), axis=1)
+        return index, share, n_s
+
+    def _fluid_velocity(
+        self, disc: Discretisation, state: State, load: FluidLoad, up
+    ) -> Float[Array, "m d"]:
+        """u_f of each grain (seed 002 eq. 3.78-3.80): the w_s-weighted mean
+        velocity of its fluid neighbours (0 with none), its horizontal part
+        times 1 - min(n_s / n_s0, 1), n_s the number density of its solid
+        neighbours (grains, walls and dummies)."""
+        index, share, n_s = self._fluid_shares(disc, state, load)
         u = jnp.stack(
             [
-                jnp.sum(w_s * take_rows(state.velocity[:, a], index), axis=1)
+                jnp.sum(share * take_rows(state.velocity[:, a], index), axis=1)
                 for a in range(disc.dim)
             ],
             axis=-1,
         )
-        u = jnp.where(
-            (total > 0)[:, None], u / jnp.where(total > 0, total, 1.0)[:, None], 0.0
-        )
-        n_s = jnp.sum(disc.weight(distance, solid, disc.r_e), axis=1)
         open_share = 1.0 - jnp.clip(n_s / self.packed_density, 0.0, 1.0)
         vertical = jnp.sum(u * up[None, :], axis=-1)[:, None] * up[None, :]
         return vertical + open_share[:, None] * (u - vertical)

@@ -34,7 +34,8 @@ def predict(
     With a `coupling` (scenes with bodies), pairs inside one body carry no viscosity,
     and the viscous force rho0 nu <lap u> acts on a particle of mass density rho_i,
     so its acceleration is (rho0 / rho_i) nu <lap u>: the pair forces then stay
-    equal and opposite between a body and the fluid.
+    equal and opposite between a body and the fluid. A body model's outside force
+    per unit volume (`Coupling.force`) accelerates a particle by force / rho_i.
     """
     velocity = state.velocity
     if coupling is not None:
@@ -43,6 +44,8 @@ def predict(
     if coupling is not None:
         viscous = viscous * jnp.reshape(params.density / coupling.density, (-1, 1))
     accel = viscous + params.gravity[None, :]
+    if coupling is not None and coupling.force is not None:
+        accel = accel + coupling.force / coupling.density[:, None]
     mobile = is_mobile(state.kind, state.active)
     return jnp.where(mobile[:, None], velocity + params.dt * accel, velocity)
 

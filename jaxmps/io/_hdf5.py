@@ -32,6 +32,8 @@ STATE_FIELDS = (
 )
 # /state fields run files of earlier versions lack (read as 0 from those).
 LATER_STATE_FIELDS = ("dt", "acceleration", "escaped")
+# Body sub-state fields run files of earlier versions lack (read as 0 from those).
+LATER_BODY_FIELDS = {"grains": ("reaction",)}
 FRAME_FIELDS = ("time", "step", "position", "velocity", "pressure", "active")
 
 
@@ -551,6 +553,8 @@ def load_state(path: str | os.PathLike, case: Any):
             continue
         parts = {}
         for name, part in _module_fields(like).items():
+            if name not in stored and name in LATER_BODY_FIELDS.get(model, ()):
+                stored[name] = np.zeros(part.shape)
             if name not in stored:
                 raise ValueError(f"'{path}': /state/{model} lacks '{name}'.")
             parts[name] = cast(f"/state/{model}/{name}", stored[name], part)

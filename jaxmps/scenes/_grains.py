@@ -33,6 +33,7 @@ MATERIAL = {
     "stiffness": None,
     "contact_capacity": None,
     "substeps": None,
+    "on_fluid": False,
 }
 
 GRAIN_SETTLING = {
@@ -100,6 +101,7 @@ def _grain_case(c: dict, name: str, position, kind, grains, domain, scale: float
         diameter=c["grain_diameter"],
         contact_capacity=c["contact_capacity"],
         substeps=c["substeps"],
+        on_fluid=c["on_fluid"],
     )
 
 
