@@ -201,6 +201,7 @@ def _observe_dt(scene, state):
     return state.dt
 
 
+@pytest.mark.slow
 def test_gradient_of_an_adaptive_rollout_matches_finite_differences():
     assert jax.config.jax_enable_x64  # tests/conftest.py
     if True:

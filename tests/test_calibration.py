@@ -58,6 +58,7 @@ def test_transforms_round_trip():
     assert float(Bounded(0.1, 0.9).forward(jnp.asarray(50.0))) <= 0.9
 
 
+@pytest.mark.slow
 def test_calibrate_recovers_viscosity_from_synthetic_front(case, tmp_path):
     """Synthetic front curve made with nu = 0.01; start from 0.006; recovered within
     2 % in at most 25 Adam iterations (log scale)."""
@@ -106,6 +107,7 @@ def test_smooth_strip_level_is_differentiable_and_matches_hard_count():
     assert np.all(np.isfinite(g)) and float(jnp.abs(g).max()) > 0
 
 
+@pytest.mark.slow
 def test_calibrate_a_per_body_friction_coefficient():
     """A per-body field (shape (b,)) is calibrated like a scalar: a coarse sliding
     block made with mu_k = 0.45, fitted from 0.3, moves towards the truth and the

@@ -32,6 +32,7 @@ def test_sliding_acceleration(tilt_sweep):
     np.testing.assert_allclose(dx[fast], theory[fast], rtol=0.10)
 
 
+@pytest.mark.slow
 def test_sliding_distance_gradients_match_differences_and_theory():
     """The gradient of the sliding distance by reverse mode, w.r.t. mu_k and both
     components of gravity, equals central finite differences and the uniform
@@ -189,6 +190,7 @@ def test_smooth_coulomb_gives_a_gradient_while_sticking():
     np.testing.assert_allclose(smooth, exact, rtol=1e-6)
 
 
+@pytest.mark.slow
 def test_two_bodies_collide_without_interpenetration():
     """Two free blocks of different densities meeting off-centre. Contact acts through
     the pressure pair forces (antisymmetric) and the collision guard:
@@ -291,8 +293,10 @@ def _contact(n=(0.0, 1.0), force=(0.0, 1000.0), pressure_sum=2000.0):
 
 @pytest.mark.parametrize(
     "width, height, below, above",
-    [(1.0, 1.0, 0.9, 1.1), (0.5, 1.0, 0.35, 0.55)],
-    ids=["cube", "tall"],
+    [
+        pytest.param(1.0, 1.0, 0.9, 1.1, id="cube"),
+        pytest.param(0.5, 1.0, 0.35, 0.55, id="tall", marks=pytest.mark.slow),
+    ],
 )
 def test_block_tips_over_its_edge_only_beyond_the_static_limit(
     width, height, below, above
@@ -321,6 +325,7 @@ def test_block_tips_over_its_edge_only_beyond_the_static_limit(
     assert angle[1, -1] > 60.0, angle[1, -1]  # tipped over
 
 
+@pytest.mark.slow
 def test_block_on_block_sticks_below_and_slides_above_their_coefficient():
     """A 0.5 x 0.25 m block on a 2 m base block (mu = 1.5 against the floor) on a
     slope of tan(theta) = 0.6: with mu = 0.66 between them (the smaller of the
@@ -359,6 +364,7 @@ def test_block_on_block_sticks_below_and_slides_above_their_coefficient():
         np.testing.assert_allclose(d1, d0, rtol=0, atol=1e-10 * d0.max())
 
 
+@pytest.mark.slow
 def test_block_in_still_water_sticks_and_slides_with_its_submerged_weight():
     """Seed 002 T10: a block of 1.5 x the water's density on a slope of
     tan(theta) = 0.5 in still water, with the submerged-weight normal force

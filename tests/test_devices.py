@@ -25,6 +25,7 @@ def _python(code: str, devices: int = 1, timeout: float = 300, env=None):
     return python_with_devices(code, devices, timeout, env)
 
 
+@pytest.mark.slow
 def test_sweep_over_four_devices_equals_one_device():
     """Five members (padded to two per device) and four members (one per device)
     split over four CPU devices give the bits of the one-device sweep."""
@@ -169,6 +170,7 @@ def _sweep_process(out: Path, extra: list[str], devices: int = 1, t_end="0.02"):
     )
 
 
+@pytest.mark.slow
 def test_two_processes_run_one_sweep(tmp_path):
     """Two processes on this machine (a localhost coordinator, CPU collectives by
     Gloo), one device each: process 0 writes the files, with the values of the
@@ -247,6 +249,7 @@ def test_one_run_split_over_devices_equals_one_device():
     assert report["diff"] < 1e-12
 
 
+@pytest.mark.slow
 def test_calibrating_a_batch_over_two_devices_equals_one_device():
     """Two dam breaks under different gravity share one viscosity: over two
     devices (one member each) the batched fit is the one-device fit to 1e-12;

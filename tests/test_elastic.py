@@ -497,6 +497,7 @@ def test_the_pressure_does_not_hold_an_elastic_body_against_its_own_strain():
     assert energy.min() < 0.5 * energy.max()
 
 
+@pytest.mark.slow
 def test_a_3d_beam_passes_its_momentum_to_the_clamp_and_back_at_the_bar_speed():
     """Seed 000 §3.2.2 at l0 = 2.5 cm (688 particles): the 1.0 x 0.1 x 0.1 m beam
     (E = 4e3 Pa, nu = 0.48, rho = 500 kg/m^3) clamped at one end, its last
@@ -571,6 +572,7 @@ def _plate_static(water):
     return static, w[int(np.argmax(w[:100])) :], case
 
 
+@pytest.mark.slow
 def test_water_weighs_on_an_elastic_plate_as_the_same_weight_would():
     """A plate clamped at both ends under a water column (`elastic_plate`): its
     static deflection equals that of the same plate carrying the same load as its

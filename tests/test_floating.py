@@ -68,6 +68,7 @@ def test_floating_box_draft_matches_archimedes(ratio):
     assert np.max(np.abs(s["box_angle"])) < math.radians(5.0)
 
 
+@pytest.mark.slow
 def test_floating_box_draft_at_finer_spacing_and_deeper_water():
     """At l0 = 1 cm (B / 20) in water three box heights deep the displaced depth
     stays within 0.3 l0 of Archimedes' (so the error falls in metres as l0
@@ -146,6 +147,7 @@ def test_floating_box_rights_itself():
     assert abs(extremes[0]) < heel[0]
 
 
+@pytest.mark.slow
 def test_centre_of_gravity_decides_whether_a_square_log_rolls_over():
     """A square box at half the water's density heeled by 5 degrees: uniform, its
     metacentric height is negative (GM = T/2 + B^2/(12 T) - H/2 = -0.83 cm), so it

@@ -201,6 +201,8 @@ FIELDS = [
     ("heeled", "rigid.centre_of_mass"),
     ("heeled", "rigid.gyration"),
 ]
+# Cases whose gradient programs take a minute or more to compile: the slow tier.
+SLOW_CASES = ("floating", "heeled")
 
 
 def _loss(scene, params, state, n_steps=6):
@@ -222,7 +224,11 @@ def _loss(scene, params, state, n_steps=6):
 # host central differences at 1e-6 / 1e-5 / 1e-4 |x| read -0.1215649 / -0.1215367 /
 # -0.1215388 against AD -0.1215387 (2e-4, 2e-5, 2e-7).
 @pytest.mark.parametrize(
-    "case_name, field, step", [(*f, 1e-6) if len(f) == 2 else f for f in FIELDS]
+    "case_name, field, step",
+    [
+        pytest.param(*f, marks=pytest.mark.slow) if f[0] in SLOW_CASES else f
+        for f in ((*f, 1e-6) if len(f) == 2 else f for f in FIELDS)
+    ],
 )
 def test_gradient_matches_central_differences(case_name, field, step):
     scene, params, state = CASES[case_name]()

@@ -537,7 +537,15 @@ def test_a_restart_continues_the_grains_bit_for_bit(tmp_path):
     assert state.grains.reaction.shape == whole.state.grains.reaction.shape
 
 
-@pytest.mark.parametrize("field", ["friction", "restitution", "density", "stiffness"])
+@pytest.mark.parametrize(
+    "field",
+    [
+        "friction",
+        "restitution",
+        pytest.param("density", marks=pytest.mark.slow),
+        pytest.param("stiffness", marks=pytest.mark.slow),
+    ],
+)
 def test_gradients_through_contacts_match_central_differences(field):
     """Over the first 20 steps (10 ms) of a collapsing column, where contacts
     press and slide but few begin or end, d(loss)/d(field) by reverse mode meets

@@ -180,6 +180,7 @@ def test_region_damps_sloshing_and_compiles_only_where_present():
     assert peaks[0] > 1.5 * peaks[1] > 1.5 * 2 * peaks[2]
 
 
+@pytest.mark.slow
 def test_kappa_gradient_matches_finite_differences():
     """d(probe)/d kappa of a short rollout of a shaken tank with a region, by
     reverse mode against central differences (float64), in the seed's regime

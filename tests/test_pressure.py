@@ -215,7 +215,9 @@ def _lattice_system(dim, size, rng):
     return scene, x, assemble_pressure_system(pairs, kind, act, surface)
 
 
-@pytest.mark.parametrize("dim, size", [(2, 14), (3, 6)])
+@pytest.mark.parametrize(
+    "dim, size", [(2, 14), pytest.param(3, 6, marks=pytest.mark.slow)]
+)
 def test_multigrid_preconditioner_is_spd_and_clusters_the_spectrum(dim, size, rng):
     """M^-1 (a symmetric V-cycle) is symmetric positive definite, and the spectrum
     of M^-1 A is far tighter than Jacobi's (measured: condition number 5.9 vs 256
@@ -248,6 +250,7 @@ def test_multigrid_preconditioner_is_spd_and_clusters_the_spectrum(dim, size, rn
     assert multigrid < 0.25 * jacobi
 
 
+@pytest.mark.slow
 def test_multigrid_cg_matches_dense_gradient_and_vmap(rng):
     """The multigrid-preconditioned solve gives the dense solution in fewer
     iterations than Jacobi, its implicit gradient matches finite differences

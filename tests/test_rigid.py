@@ -144,7 +144,7 @@ def test_projection_keeps_momentum_of_tentative_velocities(dim, rng):
     )
 
 
-@pytest.mark.parametrize("dim", [2, 3])
+@pytest.mark.parametrize("dim", [2, pytest.param(3, marks=pytest.mark.slow)])
 def test_body_with_given_centre_of_mass_and_gyration_moves_about_it(dim):
     """A body whose centre of mass G is off its particles' centroid, with given
     radii of gyration, in free flight (no gravity): G moves in a straight line at
