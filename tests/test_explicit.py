@@ -37,6 +37,81 @@ def test_explicit_hydrostatic_pressure_time_averaged_within_5_percent():
     assert float(jnp.abs(tr.state.velocity).max()) < 0.2
 
 
+def test_facing_wall_pressure_is_that_of_the_nearest_fluid_particle(rng):
+    """wall_pressure='facing' (seed 002 Ch. 5): each wall particle takes the
+    pressure of its nearest fluid particle within r_e (0 with none), checked by
+    brute force on a jittered tank (no ties); every other pressure is the
+    equation of state's."""
+    case = jaxmps.scenes.hydrostatic(
+        solver="explicit", spacing=0.02, width=0.2, depth=0.2, wall_pressure="facing"
+    )
+    scene, state = case.scene, case.state
+    fluid = np.asarray((state.kind == 0) & state.active)
+    jitter = rng.normal(0, 0.05 * 0.02, state.position.shape)
+    x = state.position + jnp.asarray(np.where(fluid[:, None], jitter, 0.0))
+    nbrs = jaxmps.neighbours.build(
+        scene.grid, x, state.active, scene.max_neighbours, scene.r_e
+    )
+    pairs = jaxmps.operators.make_pairs(nbrs.index, x, scene.weight, scene.r_e)
+    inputs = jaxmps.fluid.PressureInputs(
+        pairs=pairs,
+        n_star=jaxmps.operators.number_density(pairs),
+        position=x,
+        velocity=state.velocity,
+        surface=jnp.zeros_like(state.active),
+        pairs_k=pairs,
+        velocity_k=state.velocity,
+        pressure_k=state.pressure,
+        kind=state.kind,
+        active=state.active,
+    )
+    disc = scene.discretisation
+    facing = np.asarray(
+        scene.solver(disc, scene.laplacian, scene.grid, case.params, inputs).pressure
+    )
+    plain = jaxmps.Explicit()(
+        disc, scene.laplacian, scene.grid, case.params, inputs
+    ).pressure
+    plain = np.asarray(plain)
+    wall = np.asarray((state.kind == int(jaxmps.Kind.WALL)) & state.active)
+    xs = np.asarray(x)
+    expected = plain.copy()
+    for i in np.nonzero(wall)[0]:
+        r = np.linalg.norm(xs[fluid] - xs[i], axis=1)
+        near = r < scene.r_e
+        expected[i] = plain[fluid][np.argmin(r)] if near.any() else 0.0
+    assert np.count_nonzero(expected[wall]) > 10
+    np.testing.assert_array_equal(facing, expected)
+
+
+def test_facing_wall_pressure_holds_the_hydrostatic_bottom_pressure():
+    """With the walls given the facing fluid's pressure, the time-averaged
+    pressure at the bottom of a still tank is within 2 % of rho g (H - l0/2)
+    (the equation-of-state walls: 3.5 % short, `test_explicit_hydrostatic_...`),
+    and no fluid particle crosses the floor."""
+    case = jaxmps.scenes.hydrostatic(
+        solver="explicit", spacing=0.01, width=0.2, wall_pressure="facing"
+    )
+    obs = jaxmps.scenes.observe_probes(case.probes)
+    n = int(1.0 / float(case.params.dt)) // 50 * 50
+    tr = jaxmps.simulate(case.scene, case.params, case.state, n, 50, obs)
+    p = {k: np.asarray(v)[25:].mean() for k, v in tr.saved.items()}
+    rho_g = 1000.0 * 9.81
+    assert p["pressure_bottom"] == pytest.approx(rho_g * (0.2 - 0.005), rel=0.02)
+    assert p["pressure_middle"] == pytest.approx(rho_g * (0.195 - 0.1), rel=0.02)
+    fluid = np.asarray(tr.state.kind) == 0
+    assert np.asarray(tr.state.position)[fluid, 1].min() > 0.0
+
+
+def test_wall_pressure_is_an_explicit_option_named_in_its_refusals():
+    with pytest.raises(ValueError, match=r"wall_pressure='mirror' is not available"):
+        jaxmps.scenes.hydrostatic(solver="explicit", wall_pressure="mirror")
+    with pytest.raises(ValueError, match=r"use solver=explicit"):
+        jaxmps.scenes.hydrostatic(wall_pressure="facing")
+    with pytest.raises(ValueError, match=r"valid: \('equation', 'facing'\)"):
+        jaxmps.Explicit(wall_pressure="nearest")
+
+
 def test_time_step_beyond_sound_speed_limit_is_refused_unless_opted_out():
     case = jaxmps.scenes.hydrostatic(
         solver="explicit", spacing=0.02, width=0.1, depth=0.1, dt=1e-3

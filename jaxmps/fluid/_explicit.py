@@ -5,12 +5,14 @@ from typing import ClassVar
 
 import jax.numpy as jnp
 
-from .._numerics import is_concrete
+from .._numerics import is_concrete, take_rows
 from .._params import Params
-from .._types import PRESSURE_KINDS, Scalar, is_kind
+from .._types import MOBILE_KINDS, PRESSURE_KINDS, Field, Kind, Scalar, is_kind
 from ..neighbours import Grid
 from ..operators import AbstractLaplacian, Discretisation
 from ._solver import AbstractPressureSolver, PressureInputs, PressureSolution
+
+WALL_PRESSURES = ("equation", "facing")
 
 
 class Explicit(AbstractPressureSolver):
@@ -34,12 +36,26 @@ class Explicit(AbstractPressureSolver):
         check_time_step: refuse a concrete dt with c dt / l0 > sound_courant when the
             simulation starts (ValueError stating the limit). Set False to opt out;
             the run-time check (`Result.step_too_large`) stays.
+        wall_pressure: how wall particles get their pressure: "equation", from
+            the equation of state like fluid (seed 002 Ch. 3), or "facing", the
+            pressure of the nearest fluid or body particle within r_e, 0 with
+            none (seed 002 Ch. 5 and 8.2: "to make the pressure gradient zero at
+            the wall, the wall particle is given the pressure of the fluid
+            particle facing it").
     """
 
     needs_surface: ClassVar[bool] = False
     pressure_is_force: ClassVar[bool] = True
     sound_courant: float = 0.8
     check_time_step: bool = True
+    wall_pressure: str = "equation"
+
+    def __check_init__(self):
+        if self.wall_pressure not in WALL_PRESSURES:
+            raise ValueError(
+                f"wall_pressure={self.wall_pressure!r} is not a wall pressure; "
+                f"valid: {WALL_PRESSURES}."
+            )
 
     def max_dt(self, spacing: float, sound_speed: float) -> float:
         """The sound-speed stability limit dt < sound_courant l0 / c [s]."""
@@ -75,13 +91,13 @@ class Explicit(AbstractPressureSolver):
         carries = jnp.logical_and(inputs.active, is_kind(inputs.kind, PRESSURE_KINDS))
         # Free surface and spray: n* <= n0 gives P = 0 (threshold 1, eq. 3.34), as do
         # particles a free-surface model flags (none without one).
-        # Choice: wall particles get their pressure from the equation of state like
-        # fluid (seed 002 Ch. 3); the mirrored variant of Ch. 5 is not implemented.
         compression = jnp.maximum(inputs.n_star - disc.n0, 0.0)
         loaded = carries & ~inputs.surface
         pressure = jnp.where(
             loaded, params.sound_speed**2 * params.density / disc.n0 * compression, 0.0
         )
+        if self.wall_pressure == "facing":
+            pressure = _facing(pressure, inputs)
         sound = params.sound_speed * params.dt / disc.spacing > self.sound_courant
         return PressureSolution(
             pressure=pressure,
@@ -91,3 +107,18 @@ class Explicit(AbstractPressureSolver):
             converged=jnp.asarray(True),
             unstable=sound,
         )
+
+
+def _facing(pressure: Field, inputs: PressureInputs) -> Field:
+    """`pressure` with each wall particle's replaced by that of its nearest fluid
+    or body particle within r_e (0 with none): the wall facing it."""
+    pairs = inputs.pairs
+    mobile = inputs.active & is_kind(inputs.kind, MOBILE_KINDS)
+    candidate = pairs.valid & take_rows(mobile, pairs.index)
+    distance = jnp.where(candidate, pairs.distance, jnp.inf)
+    nearest = jnp.argmin(distance, axis=1)
+    found = jnp.any(candidate, axis=1)
+    partner = jnp.take_along_axis(pairs.index, nearest[:, None], axis=1)[:, 0]
+    facing = jnp.where(found, take_rows(pressure, partner), 0.0)
+    wall = inputs.active & (inputs.kind == int(Kind.WALL))
+    return jnp.where(wall, facing, pressure)

@@ -10,7 +10,8 @@ from .. import geometry, schemes
 from .._build import make_params, make_scene, make_state
 from .._stepping import Adaptive
 from .._types import Kind
-from ..fluid import Jacobi, Multigrid, SemiImplicit
+from ..fluid import Explicit, Jacobi, Multigrid, SemiImplicit
+from ..fluid._explicit import WALL_PRESSURES
 
 SOLVERS = ("semi_implicit", "explicit")
 SCHEMES = ("standard", "high_accuracy", "standard_mps")
@@ -47,6 +48,7 @@ COMMON = {
     "rtol": SemiImplicit.rtol,
     "max_iterations": SemiImplicit.max_iterations,
     "preconditioner": _preconditioner_name(SemiImplicit.preconditioner),
+    "wall_pressure": Explicit.wall_pressure,
     "max_neighbours": None,
     "candidate_capacity": None,
     "courant": Adaptive.courant,
@@ -117,6 +119,19 @@ def resolve(name: str, specific: dict[str, Any], overrides: dict[str, Any]) -> d
         raise ValueError(
             f"preconditioner={config['preconditioner']!r} is not available; valid: "
             f"{tuple(PRECONDITIONERS)}."
+        )
+    if config["wall_pressure"] not in WALL_PRESSURES:
+        raise ValueError(
+            f"wall_pressure={config['wall_pressure']!r} is not available; valid: "
+            f"{WALL_PRESSURES}."
+        )
+    if config["wall_pressure"] != Explicit.wall_pressure and config["solver"] != (
+        "explicit"
+    ):
+        raise ValueError(
+            f"wall_pressure={config['wall_pressure']!r} is an option of the explicit "
+            "solver (the semi-implicit one solves the walls' pressure); use "
+            "solver=explicit."
         )
     if config["scheme"] != "standard" and config["solver"] != "semi_implicit":
         raise ValueError(
@@ -397,7 +412,7 @@ def discretisation(config: dict) -> schemes.Scheme:
     """The `Scheme` of the `solver` and `scheme` settings (with the pressure-solve
     settings `rtol`, `max_iterations`, `preconditioner`)."""
     if config["solver"] == "explicit":
-        return schemes.explicit()
+        return schemes.explicit(Explicit(wall_pressure=config["wall_pressure"]))
     solver = SemiImplicit(
         rtol=config["rtol"],
         max_iterations=int(config["max_iterations"]),
