@@ -50,6 +50,8 @@ def add_grains(
     dashpot_ramp: float = bodies.Grains.dashpot_ramp,
     on_bodies: bool = True,
     on_fluid: bool = False,
+    attached=None,
+    detach_distance: float = bodies.Grains.detach_distance,
 ) -> tuple[Scene, Params, State]:
     """Turn particles of a built case into DEM grains (seed 002 §5): spheres of
     one particle each (`Kind.SEDIMENT`), in contact with one another and with the
@@ -83,8 +85,11 @@ def add_grains(
         substeps: DEM sub-steps per step; None: the fewest that keep a sub-step
             within seed 002's rule step at `Params.dt` (`bodies.rule_step`).
         packed_density: n_s0, the solid number density of a packed bed (the
-            velocity correction of seed 002 eq. 3.80); None: the scene's n0 (a
-            bed on the fluid's lattice).
+            velocity correction of seed 002 eq. 3.80 and the junction
+            correction of eq. 3.73); None: with attached grains, the largest
+            number density an attached grain has among the grains and walls
+            at the start (a bed a few grains deep has grains of full support),
+            else the scene's n0 (a bed on the fluid's lattice).
         courant: a step moves a grain by at most courant l0 (`Grains.courant`).
         dashpot_ramp: the share of the contact distance over which the dashpots
             engage (0: at once, as seed 002; a calibration by gradient may want
@@ -95,6 +100,14 @@ def add_grains(
         on_fluid: whether the fluid feels the grains' drag and lift back
             (False: seed 002, "no reaction on the fluid"; True keeps the
             momentum of fluid and grains together, see `Grains`).
+        attached: which of the grains start in the bed (a boolean per initial
+            particle, as `grains`; None: none): walls to the fluid and the
+            bodies, their pairs weighing n0 / n_s0 in the fluid's sums (seed
+            002 §5.5 and eq. 3.73), moved by the DEM all the same, until one
+            has moved `detach_distance` diameters from its start and is free
+            for good.
+        detach_distance: that distance, in diameters (`Grains.detach_distance`;
+            seed 002 gives no criterion).
 
     Returns:
         The new (scene, params, state).
@@ -150,6 +163,9 @@ def add_grains(
     mass = (
         float(grain_params.density) - (float(params.density) if submerged else 0.0)
     ) * bodies.sphere_volume(sizes)
+    bed = _attached(attached, selected, index)
+    if packed_density is None and bed.any():
+        packed_density = _bed_density(scene, position, active, kind, index[bed])
     body_kinds = [int(Kind.RIGID), int(Kind.ELASTIC)]
     touches_bodies = bool(np.any(np.isin(kind[walls], body_kinds)))
     if on_fluid and not submerged:
@@ -170,6 +186,9 @@ def add_grains(
         submerged=submerged,
         on_bodies=bool(on_bodies) and touches_bodies,
         on_fluid=bool(on_fluid),
+        bed=bool(bed.any()),
+        detach_distance=float(detach_distance),
+        packing=float(scene.n0 / packed_density) if bed.any() else 1.0,
         packed_density=float(scene.n0 if packed_density is None else packed_density),
         courant=float(courant),
         dashpot_ramp=float(dashpot_ramp),
@@ -185,8 +204,10 @@ def add_grains(
         fluid_force=jnp.zeros((m, dim), dtype),
         contact_count=jnp.zeros((m,), jnp.int32),
         reaction=jnp.zeros((scene.capacity if model.reacts else 0, dim), dtype),
+        attached=jnp.asarray(bed),
+        origin=jnp.asarray(position[index], dtype),
     )
-    kind[index] = int(Kind.SEDIMENT)
+    kind[index] = np.where(bed, int(Kind.WALL), int(Kind.SEDIMENT))
     new_params = dataclasses.replace(params, grains=grain_params)
     new_state = dataclasses.replace(
         state, kind=jnp.asarray(kind, state.kind.dtype), grains=sub
@@ -195,6 +216,44 @@ def add_grains(
     if scene.time_step is None:
         model.check_body_step(new_params, new_state)
     return dataclasses.replace(scene, grains=model), new_params, new_state
+
+
+def _attached(attached, selected: np.ndarray, index: np.ndarray) -> np.ndarray:
+    """Per grain, whether it starts in the bed; refuses a mask that selects
+    particles that are not grains."""
+    if attached is None:
+        return np.zeros(len(index), bool)
+    mask = np.asarray(attached)
+    if mask.ndim != 1 or mask.dtype != bool or mask.shape[0] > selected.shape[0]:
+        raise ValueError(
+            "attached must be a 1-D boolean array like grains, got shape "
+            f"{mask.shape} and dtype {mask.dtype}."
+        )
+    full = np.zeros(selected.shape[0], bool)
+    full[: mask.shape[0]] = mask
+    if np.any(full & ~selected):
+        raise ValueError(
+            "attached selects particles that are not grains; it must be a part of "
+            "the grains mask."
+        )
+    return full[index]
+
+
+def _bed_density(scene: Scene, position, active, kind, bed: np.ndarray) -> float:
+    """n_s0: the largest number density (the fluid's weight and r_e) of an
+    attached grain among the grains of the bed and the walls."""
+    solid = active & np.isin(kind, [int(Kind.WALL), int(Kind.DUMMY)])
+    solid[bed] = True
+    others = position[solid]
+    weight = scene.discretisation.weight
+    best = 0.0
+    for i in bed:
+        r = np.linalg.norm(others - position[i], axis=1)
+        near = (r > 0) & (r < scene.r_e)
+        rs = jnp.asarray(r[near])
+        value = np.asarray(weight(rs, jnp.ones(rs.shape, bool), scene.r_e))
+        best = max(best, float(value.sum()))
+    return best
 
 
 def _refuse_large(sizes: np.ndarray, r_e: float) -> None:

@@ -48,6 +48,11 @@ class Coupling(eqx.Module):
             fluid through drag and lift alone and act on it through nothing):
             every pair with one of them weighs nothing in the fluid stages
             (`visible`); None: none, shape (n,).
+        packing: the weight a particle's pairs carry in the fluid's sums, 1 on
+            the lattice and n0 / n_s0 for grains packed in a bed (seed 002 eq.
+            3.73: the junction of lattice walls and a packed bed), applied to
+            the pairs whose partner it is (`visible`); None: 1 everywhere,
+            shape (n,).
         force: a force per unit volume [N/m^3] the body models exert on
             particles from outside the fluid stages (the DEM grains' contacts on
             body particles and their drag on the fluid, from the last step),
@@ -63,6 +68,7 @@ class Coupling(eqx.Module):
     as_fluid: Bool[Array, " n"]
     reference_density: Float[Array, " n"] | None = None
     hidden: Bool[Array, " n"] | None = None
+    packing: Float[Array, " n"] | None = None
     force: Float[Array, "n d"] | None = None
     between_bodies: bool = eqx.field(static=True, default=False)
 
@@ -113,21 +119,26 @@ def visible(coupling: Coupling | None, pairs: Pairs, r_e: float) -> Pairs:
     """`pairs` as the fluid stages see them: a pair with a hidden particle
     (`Coupling.hidden`) is no pair (not valid, no weight, no offset, distance
     r_e); the lists keep its index (a body model may read its own particles'
-    rows)."""
-    if coupling is None or coupling.hidden is None:
+    rows). A pair's weight is times its partner's `Coupling.packing`."""
+    if coupling is None:
         return pairs
-    hidden = coupling.hidden
-    seen = ~(hidden[:, None] | take_rows(hidden, pairs.index))
-    return eqx.tree_at(
-        lambda p: (p.valid, p.weight, p.offset, p.distance),
-        pairs,
-        (
-            pairs.valid & seen,
-            jnp.where(seen, pairs.weight, 0.0),
-            tuple(jnp.where(seen, o, 0.0) for o in pairs.offset),
-            jnp.where(seen, pairs.distance, r_e),
-        ),
-    )
+    if coupling.hidden is not None:
+        hidden = coupling.hidden
+        seen = ~(hidden[:, None] | take_rows(hidden, pairs.index))
+        pairs = eqx.tree_at(
+            lambda p: (p.valid, p.weight, p.offset, p.distance),
+            pairs,
+            (
+                pairs.valid & seen,
+                jnp.where(seen, pairs.weight, 0.0),
+                tuple(jnp.where(seen, o, 0.0) for o in pairs.offset),
+                jnp.where(seen, pairs.distance, r_e),
+            ),
+        )
+    if coupling.packing is not None:
+        weight = pairs.weight * take_rows(coupling.packing, pairs.index)
+        pairs = eqx.tree_at(lambda p: p.weight, pairs, weight)
+    return pairs
 
 
 def source_view(

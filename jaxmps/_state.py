@@ -107,6 +107,10 @@ class GrainState(eqx.Module):
             drag and lift on the fluid where they push it back), which the next
             step's prediction applies, shape (n, d); (0, d) where the grains act
             on nothing (`Grains.reacts`).
+        attached: whether each grain is still in the bed, a wall to the fluid
+            (`Grains.bed`; False once it has detached), shape (m,).
+        origin: where each grain started [m] (its detachment is measured from
+            there), shape (m, d).
     """
 
     index: Int[Array, " m"]
@@ -118,6 +122,8 @@ class GrainState(eqx.Module):
     fluid_force: Float[Array, "m d"]
     contact_count: Int[Array, " m"]
     reaction: Float[Array, "r d"]
+    attached: Bool[Array, " m"]
+    origin: Float[Array, "m d"]
 
 
 class State(eqx.Module):

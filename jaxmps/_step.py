@@ -238,6 +238,7 @@ def _coupling(scene: Scene, params: Params, state: State) -> Coupling | None:
             as_fluid=jnp.where(part.owned, part.as_fluid, merged.as_fluid),
             reference_density=_merged_reference(merged, part),
             hidden=_merged_hidden(merged, part),
+            packing=_merged_packing(merged, part),
             force=_merged_force(merged, part),
             between_bodies=merged.between_bodies or part.between_bodies,
         )
@@ -249,6 +250,13 @@ def _merged_hidden(merged: Coupling, part: Coupling) -> Mask | None:
     if merged.hidden is None or part.hidden is None:
         return part.hidden if merged.hidden is None else merged.hidden
     return merged.hidden | part.hidden
+
+
+def _merged_packing(merged: Coupling, part: Coupling) -> Field | None:
+    """The merged `Coupling.packing`: the product of the models' factors."""
+    if merged.packing is None or part.packing is None:
+        return part.packing if merged.packing is None else merged.packing
+    return merged.packing * part.packing
 
 
 def _merged_force(merged: Coupling, part: Coupling) -> Velocities | None:

@@ -813,3 +813,128 @@ def test_bodies_that_feel_grains_refuse_a_step_beyond_their_limit():
         _bed(dt=2e-3)
     scene, params, state = _bed(on_bodies=False, dt=2e-3)  # the seed's: no limit
     assert not scene.grains.on_bodies
+
+
+# ------------------------------------------------------------ the bed as wall
+
+
+def _junction(correct=True, l0=0.005, width=0.1, rows=4, depth=0.04):
+    """Still water over a bed whose left half is lattice wall and right half
+    seed 002's packed grains (d = l0) attached to the bed (explicit E-MPS)."""
+    half = width / 2
+    walls, wall_kind = geometry.tank([0, 0], [width, 2 * depth], l0, layers=3)
+    lattice = geometry.block([0, 0], [half, rows * l0], l0)
+    # The lattice's top row and its face to the grains are walls, the rest dummy.
+    face = (lattice[:, 1] > (rows - 1) * l0) | (lattice[:, 0] > half - l0)
+    lattice_kind = np.where(face, int(Kind.WALL), int(Kind.DUMMY))
+    bed = geometry.packed_bed([half, 0], [width, rows * l0], l0)
+    fluid = geometry.block([0, rows * l0], [width, rows * l0 + depth], l0)
+    position = np.concatenate([bed, fluid, lattice, walls])
+    kind = np.concatenate(
+        [np.zeros(len(bed) + len(fluid), np.int32), lattice_kind, wall_kind]
+    )
+    domain = ([-0.03, -0.03], [width + 0.03, 2 * depth + 0.03])
+    scene = jaxmps.make_scene(position, l0, domain, scheme=jaxmps.schemes.explicit())
+    params = jaxmps.make_params(2, dt=0.4 * l0 / 10.0)
+    state = jaxmps.make_state(scene, position, kind)
+    grains = np.arange(len(position)) < len(bed)
+    extra = {} if correct else {"packed_density": float(scene.n0)}
+    out = jaxmps.add_grains(
+        scene,
+        params,
+        state,
+        grains,
+        friction=0.5,
+        restitution=0.1,
+        density=2650.0,
+        attached=grains,
+        **extra,
+    )
+    return (*out, len(bed))
+
+
+def test_a_packed_bed_is_a_wall_whose_pairs_weigh_n0_over_ns0():
+    """T11 (seed 002 eq. 3.73): grains attached to the bed are walls to the
+    fluid; packed closer than the lattice, their number density is 1.25 n0 (the
+    seed's n_s0 / n0), so without the correction the equation of state gives
+    the bed's inner grains a spurious c^2 rho (n_s0 / n0 - 1) ~ 25 kPa; with
+    their pairs weighing n0 / n_s0 they carry none, as the lattice's walls."""
+    scene, params, state, m = _junction()
+    assert scene.grains.bed
+    assert scene.grains.packed_density / scene.n0 == pytest.approx(1.25, rel=0.01)
+    assert np.all(np.asarray(state.kind)[:m] == int(Kind.WALL))
+    position = np.asarray(state.position)[:m]
+    # Grains with packed grains all round: rows 2 and 3, away from the sides.
+    y, x = position[:, 1], position[:, 0]
+    inner = (y > 0.005) & (y < 0.012) & (x > 0.06) & (x < 0.09)
+    assert inner.sum() >= 8
+    spurious = 10.0**2 * 1000.0 * (scene.grains.packed_density / scene.n0 - 1.0)
+    after, _ = jaxmps.step(scene, params, state)
+    assert np.abs(np.asarray(after.pressure)[:m][inner]).max() < 0.01 * spurious
+    assert np.all(np.asarray(after.kind)[:m] == int(Kind.WALL))
+
+    scene, params, state, m = _junction(correct=False)
+    assert scene.grains.packing == 1.0
+    after, _ = jaxmps.step(scene, params, state)
+    np.testing.assert_allclose(
+        np.asarray(after.pressure)[:m][inner], spurious, rtol=0.05
+    )
+
+
+def test_a_grain_knocked_out_of_the_bed_detaches_for_good():
+    """A grain of a dry attached bed sent up at 0.5 m/s leaves it: once half a
+    diameter from its start it is free (`Kind.SEDIMENT`, hidden from the
+    fluid) and stays free; the others stay in the bed as walls."""
+    l0 = 0.005
+    walls, wall_kind = geometry.tank([0, 0], [0.04, 0.06], l0, layers=3)
+    bed = geometry.packed_bed([0, 0], [0.04, 3 * l0], l0)
+    position = np.concatenate([bed, walls])
+    kind = np.concatenate([np.zeros(len(bed), np.int32), wall_kind])
+    scene = jaxmps.make_scene(position, l0, ([-0.03, -0.03], [0.07, 0.1]))
+    params = jaxmps.make_params(2, dt=5e-4)
+    state = jaxmps.make_state(scene, position, kind)
+    grains = np.arange(len(position)) < len(bed)
+    scene, params, state = jaxmps.add_grains(
+        scene,
+        params,
+        state,
+        grains,
+        friction=0.5,
+        restitution=0.1,
+        density=2650.0,
+        attached=grains,
+        speed=0.5,
+    )
+    top = int(np.argmax(bed[:, 1] - 1e-3 * np.abs(bed[:, 0] - 0.02)))
+    state = dataclasses.replace(state, velocity=state.velocity.at[top, 1].set(0.5))
+    out = jaxmps.simulate(scene, params, state, times=[0.02, 0.3])
+    final = out.state
+    free = ~np.asarray(final.grains.attached)
+    assert free[top] and free.sum() == 1
+    assert int(final.kind[top]) == int(Kind.SEDIMENT)
+    others = np.delete(np.arange(len(bed)), top)
+    assert np.all(np.asarray(final.kind)[others] == int(Kind.WALL))
+    coupling = scene.grains.coupling(scene.discretisation, params, final)
+    assert bool(coupling.hidden[top]) and not bool(coupling.hidden[others].any())
+
+
+def test_attached_grains_must_be_grains():
+    l0 = 0.005
+    walls, wall_kind = geometry.tank([0, 0], [0.02, 0.02], l0, layers=3)
+    position = np.concatenate([[[0.0075, 0.0025]], walls])
+    kind = np.concatenate([[0], wall_kind]).astype(np.int32)
+    scene = jaxmps.make_scene(position, l0, ([-0.03, -0.03], [0.05, 0.05]))
+    params = jaxmps.make_params(2, dt=5e-4)
+    state = jaxmps.make_state(scene, position, kind)
+    grains = np.arange(len(position)) == 0
+    with pytest.raises(ValueError, match="attached selects particles that are not"):
+        jaxmps.add_grains(
+            scene,
+            params,
+            state,
+            grains,
+            friction=0.5,
+            restitution=0.1,
+            density=2650.0,
+            attached=np.arange(len(position)) < 2,
+        )

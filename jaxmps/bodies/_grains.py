@@ -102,6 +102,11 @@ class Grains(AbstractBodyModel):
         on_bodies: whether the grains can touch body particles (rigid, elastic),
             which then feel their contacts.
         on_fluid: whether the fluid feels the grains' drag and lift back.
+        bed: whether some grains start attached to the bed (`GrainState.attached`).
+        detach_distance: an attached grain detaches for good once its centre
+            is this many diameters from where it started.
+        packing: n0 / n_s0, the weight of an attached grain's pairs in the
+            fluid's sums (seed 002 eq. 3.73).
         search_radius: the contact search radius [m]: the largest contact
             distance and a skin that covers a step's motion of both partners.
         packed_density: n_s0, the solid number density of a packed bed, for the
@@ -122,6 +127,9 @@ class Grains(AbstractBodyModel):
     submerged: bool = False
     on_bodies: bool = False
     on_fluid: bool = False
+    bed: bool = False
+    detach_distance: float = 0.5
+    packing: float = 1.0
     packed_density: float = 1.0
     poisson_ratio: float = 0.3
     courant: float = 0.2
@@ -149,6 +157,10 @@ class Grains(AbstractBodyModel):
             raise ValueError("Grains.dashpot_ramp must lie in [0, 1).")
         if self.on_fluid and not self.submerged:
             raise ValueError("Grains.on_fluid needs grains in water (submerged).")
+        if not self.detach_distance > 0:
+            raise ValueError("Grains.detach_distance must be positive.")
+        if not self.packing > 0:
+            raise ValueError("Grains.packing must be positive.")
 
     @property
     def reacts(self) -> bool:
@@ -160,17 +172,25 @@ class Grains(AbstractBodyModel):
         return jnp.full(state.position.shape[:1], -1, jnp.int32)
 
     def coupling(self, disc: Discretisation, params: Params, state: State) -> Coupling:
-        """The grains are hidden from the fluid; what they pushed in the last
-        step pushes back (`reacts`)."""
+        """The grains are hidden from the fluid, but for those attached to the
+        bed (`bed`), which are walls to it whose pairs weigh `packing`; what
+        the grains pushed in the last step pushes back (`reacts`)."""
         del disc
+        gs = state.grains
         n = state.position.shape[0]
-        hidden = jnp.zeros((n,), bool).at[state.grains.index].set(True)
+        free = ~gs.attached if self.bed else True
+        hidden = jnp.zeros((n,), bool).at[gs.index].set(free)
+        packing = None
+        if self.bed:
+            share = jnp.where(gs.attached, self.packing, 1.0)
+            packing = jnp.ones((n,), params.density.dtype).at[gs.index].set(share)
         return Coupling(
             density=jnp.full((n,), params.density, params.density.dtype),
             owner=self.owner(state),
             as_fluid=jnp.zeros((n,), bool),
             hidden=hidden,
-            force=state.grains.reaction if self.reacts else None,
+            packing=packing,
+            force=gs.reaction if self.reacts else None,
         )
 
     def effective_density(self, params: Params):
@@ -377,6 +397,17 @@ class Grains(AbstractBodyModel):
         reaction = gs.reaction
         if self.reacts:
             reaction = self._reaction(disc, state, load, on_walls, fluid, reach)
+        attached, kind = gs.attached, state.kind
+        if self.bed:
+            # Seed 002 §5.5: a grain that has left its place is free for good.
+            # Choice: "left" is moved detach_distance diameters from its start.
+            moved = (
+                jnp.sum((x - gs.origin) ** 2, axis=-1)
+                > (self.detach_distance * gs.diameter) ** 2
+            )
+            attached = attached & ~moved
+            now = jnp.where(attached, int(Kind.WALL), int(Kind.SEDIMENT))
+            kind = kind.at[gs.index].set(now.astype(kind.dtype))
         grains = dataclasses.replace(
             gs,
             partner=partner,
@@ -385,6 +416,7 @@ class Grains(AbstractBodyModel):
             fluid_force=fluid[-1],
             contact_count=count[-1],
             reaction=reaction,
+            attached=attached,
         )
         speed = jnp.sqrt(jnp.max(jnp.sum(v**2, axis=-1)))
         limit = self.substeps * self.substep_limit(params, gs.diameter)
@@ -396,6 +428,7 @@ class Grains(AbstractBodyModel):
             state,
             position=state.position.at[gs.index].set(x),
             velocity=state.velocity.at[gs.index].set(v),
+            kind=kind,
             grains=grains,
             result=result,
         )
@@ -432,6 +465,13 @@ class Grains(AbstractBodyModel):
         partner = found.index[:m]
         overflow = (jnp.max(found.count[:m]) > k) | found.cell_overflow
         total = x_dem.shape[0]
+        if self.bed and self.on_bodies:
+            # A grain in the bed is a wall to the bodies (their own wall contact),
+            # not a DEM partner.
+            body = is_kind(state.kind[gs.walls], (Kind.RIGID, Kind.ELASTIC))
+            slot = jnp.clip(partner - m, 0, max(total - m - 1, 0))
+            on_body = (partner >= m) & (partner < total) & take_rows(body, slot)
+            partner = jnp.where(gs.attached[:, None] & on_body, total, partner)
         # The carried spring of each new slot: the old slot with the same partner.
         same = (partner[:, :, None] == gs.partner[:, None, :]) & (
             partner[:, :, None] < total

@@ -130,3 +130,32 @@ def remove_overlaps(
         d2 = np.min(np.sum((chunk[:, None] - others[None]) ** 2, axis=-1), axis=1)
         keep[start : start + 4096] = d2 > (0.5 * spacing) ** 2
     return points[keep]
+
+
+def packed_bed(lower, upper, diameter: float) -> np.ndarray:
+    """Centres of spheres (2-D: discs) of `diameter` d in the closest packing of
+    seed 002's bed (Fig. 3.14b): rows d apart along x, sqrt(3)/2 d apart in y,
+    every other row shifted by d/2, filling [lower, upper] so that each sphere
+    lies inside the box (2-D only: the bed seen in the flume's plane).
+
+    With d = l0 its number density is 1.25 n0 of the square lattice (seed 002
+    §2.9: n_s0 / n0 = 1.25, at r_e = 2.1 l0).
+    """
+    lower = np.asarray(lower, dtype=np.float64)
+    upper = np.asarray(upper, dtype=np.float64)
+    if lower.shape != (2,) or upper.shape != (2,):
+        raise ValueError("packed_bed builds a 2-D bed: give lower and upper as (x, y).")
+    if not diameter > 0 or np.any(upper - lower < diameter):
+        raise ValueError(
+            f"A packed bed of diameter {diameter} needs a box at least one diameter "
+            f"wide and tall, got {lower.tolist()}..{upper.tolist()}."
+        )
+    rise = math.sqrt(3.0) / 2.0 * diameter
+    rows = int(math.floor((upper[1] - lower[1] - diameter) / rise + 1e-9)) + 1
+    centres = []
+    for k in range(rows):
+        start = lower[0] + 0.5 * diameter * (2 if k % 2 else 1)
+        x = np.arange(start, upper[0] - 0.5 * diameter + 1e-9 * diameter, diameter)
+        y = lower[1] + 0.5 * diameter + k * rise
+        centres.append(np.stack([x, np.full_like(x, y)], axis=-1))
+    return np.concatenate(centres)

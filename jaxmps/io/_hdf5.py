@@ -33,7 +33,7 @@ STATE_FIELDS = (
 # /state fields run files of earlier versions lack (read as 0 from those).
 LATER_STATE_FIELDS = ("dt", "acceleration", "escaped")
 # Body sub-state fields run files of earlier versions lack (read as 0 from those).
-LATER_BODY_FIELDS = {"grains": ("reaction",)}
+LATER_BODY_FIELDS = {"grains": ("reaction", "attached", "origin")}
 FRAME_FIELDS = ("time", "step", "position", "velocity", "pressure", "active")
 
 
