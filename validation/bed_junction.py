@@ -1,7 +1,9 @@
 """Still water over a bed that is lattice wall on the left and seed 002's packed
 grains on the right (grains attached to the bed as walls, T11): is the fluid's
 pressure continuous across the junction, with and without the number-density
-correction n0 / n_s0 of the grains' pairs (seed 002 eq. 3.73)?
+correction n0 / n_s0 of the grains' pairs (seed 002 eq. 3.73), with the walls'
+pressure from the equation of state or from the facing fluid particle
+(`Explicit.wall_pressure`)?
 
 A 0.2 m wide tank, 4 l0 of bed under 0.1 m of water, l0 = 5 mm, explicit E-MPS
 (c = 10 m/s), 1 s; averages over 0.4-1 s, saves every 25 steps. For each half:
@@ -29,7 +31,7 @@ HERE = pathlib.Path(__file__).parent
 L0, WIDTH, ROWS, DEPTH, T = 0.005, 0.2, 4, 0.1, 1.0
 
 
-def case(correct: bool):
+def case(correct: bool, wall_pressure: str):
     half, bed_top = WIDTH / 2, ROWS * L0
     walls, wall_kind = geometry.tank([0, 0], [WIDTH, 1.5 * (bed_top + DEPTH)], L0)
     lattice = geometry.block([0, 0], [half, bed_top], L0)
@@ -43,7 +45,8 @@ def case(correct: bool):
     )
     top = 1.5 * (bed_top + DEPTH)
     domain = ([-0.03, -0.03], [WIDTH + 0.03, top + 0.03])
-    scene = jaxmps.make_scene(position, L0, domain, scheme=jaxmps.schemes.explicit())
+    scheme = jaxmps.schemes.explicit(jaxmps.Explicit(wall_pressure=wall_pressure))
+    scene = jaxmps.make_scene(position, L0, domain, scheme=scheme)
     params = jaxmps.make_params(2, dt=0.4 * L0 / 10.0)
     state = jaxmps.make_state(scene, position, kind)
     grains = np.arange(len(position)) < len(bed)
@@ -63,8 +66,8 @@ def case(correct: bool):
     return scene, params, state, len(bed), len(fluid), tops
 
 
-def measure(correct: bool) -> dict:
-    scene, params, state, m, nf, tops = case(correct)
+def measure(correct: bool, wall_pressure: str) -> dict:
+    scene, params, state, m, nf, tops = case(correct, wall_pressure)
     n = int(T / float(params.dt)) // 25 * 25
     start = time.perf_counter()
     run = jaxmps.simulate(scene, params, state, n, 25, throw=False)
@@ -78,6 +81,7 @@ def measure(correct: bool) -> dict:
     hydrostatic = 1000.0 * 9.81 * (surface - x[..., 1])
     row = {
         "correct": correct,
+        "wall_pressure": wall_pressure,
         "ns0_over_n0": scene.grains.packed_density / scene.n0,
         "detached": int((~np.asarray(run.state.grains.attached)).sum()),
         "result": run.result.name if hasattr(run.result, "name") else str(run.result),
@@ -103,7 +107,11 @@ def measure(correct: bool) -> dict:
 
 
 def main() -> None:
-    rows = [measure(correct) for correct in (True, False)]
+    rows = [
+        measure(correct, wall)
+        for wall in ("equation", "facing")
+        for correct in (True, False)
+    ]
     info = machine_info()
     name = HERE / "results" / "bed_junction_cpu"
     name.with_suffix(".json").write_text(
@@ -113,17 +121,20 @@ def main() -> None:
         "# Still water over a lattice / packed-grain bed junction (T11)",
         "",
         f"l0 = {L0} m, {ROWS} l0 of bed, {DEPTH} m of water, explicit E-MPS, "
-        f"{T} s, averages over 0.4-1 s. Machine: {info.get('cpu_model', '?')} (load {info.get('loadavg_1min_start', 0):.1f}); mid-depth: within 4 l0 of half the depth.",
+        f"{T} s, averages over 0.4-1 s; mid-depth: within 4 l0 of half the depth. "
+        f"Machine: {info.get('cpu_model', '?')} "
+        f"(load {info.get('loadavg_1min_start', 0):.1f}).",
         "",
-        "| n0/n_s0 correction | n_s0/n0 | side | first layer P / rho g h | "
-        "mid-depth P / rho g h | standoff [l0] | detached | wall [s] |",
-        "|---|---|---|---|---|---|---|---|",
+        "| wall pressure | n0/n_s0 correction | n_s0/n0 | side | first layer P / "
+        "rho g h | mid-depth P / rho g h | standoff [l0] | detached | wall [s] |",
+        "|---|---|---|---|---|---|---|---|---|",
     ]
     for r in rows:
         for side in ("left", "right"):
             s = r[side]
             lines.append(
-                f"| {'yes' if r['correct'] else 'no'} | {r['ns0_over_n0']:.4f} | "
+                f"| {r['wall_pressure']} | {'yes' if r['correct'] else 'no'} | "
+                f"{r['ns0_over_n0']:.4f} | "
                 f"{side} ({'lattice' if side == 'left' else 'grains'}) | "
                 f"{s['first_layer_p']:.3f} | {s['mid_depth_p']:.3f} | "
                 f"{s['standoff_l0']:.2f} | {r['detached']} | {r['wall_s']} |"
