@@ -52,6 +52,7 @@ def add_grains(
     on_fluid: bool = False,
     attached=None,
     detach_distance: float = bodies.Grains.detach_distance,
+    junction_correction: bool | None = None,
 ) -> tuple[Scene, Params, State]:
     """Turn particles of a built case into DEM grains (seed 002 §5): spheres of
     one particle each (`Kind.SEDIMENT`), in contact with one another and with the
@@ -108,6 +109,11 @@ def add_grains(
             for good.
         detach_distance: that distance, in diameters (`Grains.detach_distance`;
             seed 002 gives no criterion).
+        junction_correction: whether the attached grains' pairs weigh
+            n0 / n_s0 (seed 002 eq. 3.73); None: yes, but with the explicit
+            solver's `wall_pressure="facing"`, whose walls take the fluid's
+            pressure whatever their own number density (measured:
+            validation/bed_junction.py).
 
     Returns:
         The new (scene, params, state).
@@ -188,7 +194,7 @@ def add_grains(
         on_fluid=bool(on_fluid),
         bed=bool(bed.any()),
         detach_distance=float(detach_distance),
-        packing=float(scene.n0 / packed_density) if bed.any() else 1.0,
+        packing=_packing(scene, packed_density, bed, junction_correction),
         packed_density=float(scene.n0 if packed_density is None else packed_density),
         courant=float(courant),
         dashpot_ramp=float(dashpot_ramp),
@@ -237,6 +243,16 @@ def _attached(attached, selected: np.ndarray, index: np.ndarray) -> np.ndarray:
             "the grains mask."
         )
     return full[index]
+
+
+def _packing(scene: Scene, packed_density, bed, correction) -> float:
+    """The weight of an attached grain's pairs in the fluid's sums: n0 / n_s0
+    with the junction correction, 1 without (or without a bed)."""
+    if correction is None:
+        correction = getattr(scene.solver, "wall_pressure", None) != "facing"
+    if not bed.any() or not correction:
+        return 1.0
+    return float(scene.n0 / packed_density)
 
 
 def _bed_density(scene: Scene, position, active, kind, bed: np.ndarray) -> float:

@@ -818,7 +818,9 @@ def test_bodies_that_feel_grains_refuse_a_step_beyond_their_limit():
 # ------------------------------------------------------------ the bed as wall
 
 
-def _junction(correct=True, l0=0.005, width=0.1, rows=4, depth=0.04):
+def _junction(
+    correct=None, l0=0.005, width=0.1, rows=4, depth=0.04, wall_pressure="equation"
+):
     """Still water over a bed whose left half is lattice wall and right half
     seed 002's packed grains (d = l0) attached to the bed (explicit E-MPS)."""
     half = width / 2
@@ -834,11 +836,11 @@ def _junction(correct=True, l0=0.005, width=0.1, rows=4, depth=0.04):
         [np.zeros(len(bed) + len(fluid), np.int32), lattice_kind, wall_kind]
     )
     domain = ([-0.03, -0.03], [width + 0.03, 2 * depth + 0.03])
-    scene = jaxmps.make_scene(position, l0, domain, scheme=jaxmps.schemes.explicit())
+    scheme = jaxmps.schemes.explicit(jaxmps.Explicit(wall_pressure=wall_pressure))
+    scene = jaxmps.make_scene(position, l0, domain, scheme=scheme)
     params = jaxmps.make_params(2, dt=0.4 * l0 / 10.0)
     state = jaxmps.make_state(scene, position, kind)
     grains = np.arange(len(position)) < len(bed)
-    extra = {} if correct else {"packed_density": float(scene.n0)}
     out = jaxmps.add_grains(
         scene,
         params,
@@ -848,7 +850,7 @@ def _junction(correct=True, l0=0.005, width=0.1, rows=4, depth=0.04):
         restitution=0.1,
         density=2650.0,
         attached=grains,
-        **extra,
+        junction_correction=correct,
     )
     return (*out, len(bed))
 
@@ -875,6 +877,9 @@ def test_a_packed_bed_is_a_wall_whose_pairs_weigh_n0_over_ns0():
 
     scene, params, state, m = _junction(correct=False)
     assert scene.grains.packing == 1.0
+    assert scene.grains.packed_density / scene.n0 == pytest.approx(1.25, rel=0.01)
+    # Walls that take the facing fluid's pressure need no correction (default).
+    assert _junction(wall_pressure="facing")[0].grains.packing == 1.0
     after, _ = jaxmps.step(scene, params, state)
     np.testing.assert_allclose(
         np.asarray(after.pressure)[:m][inner], spurious, rtol=0.05

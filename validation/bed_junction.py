@@ -50,7 +50,7 @@ def case(correct: bool, wall_pressure: str):
     params = jaxmps.make_params(2, dt=0.4 * L0 / 10.0)
     state = jaxmps.make_state(scene, position, kind)
     grains = np.arange(len(position)) < len(bed)
-    extra = {} if correct else {"packed_density": float(scene.n0)}
+    extra = {"junction_correction": correct}
     scene, params, state = jaxmps.add_grains(
         scene,
         params,
@@ -83,6 +83,7 @@ def measure(correct: bool, wall_pressure: str) -> dict:
         "correct": correct,
         "wall_pressure": wall_pressure,
         "ns0_over_n0": scene.grains.packed_density / scene.n0,
+        "packing": scene.grains.packing,
         "detached": int((~np.asarray(run.state.grains.attached)).sum()),
         "result": run.result.name if hasattr(run.result, "name") else str(run.result),
         "wall_s": round(wall, 1),
