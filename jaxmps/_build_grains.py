@@ -130,14 +130,17 @@ def add_grains(
         raise ValueError("This scene already has grains; add all in one call.")
     selected = _selected(grains, scene.capacity, state)
     index = np.nonzero(selected)[0]
-    m, dim = len(index), scene.dim
-    l0 = scene.spacing
-    sizes = _diameters(diameter, m, l0)
+    sizes = _diameters(diameter, len(index), scene.spacing)
     position = np.asarray(state.position, np.float64)
     kind = np.array(state.kind)
     active = np.asarray(state.active)
     fluid = active & (kind == int(Kind.FLUID)) & ~selected
     submerged = bool(np.any(fluid))
+    if on_fluid and not submerged:
+        raise ValueError(
+            "on_fluid=True (scene setting on_fluid) asks the fluid to feel the "
+            "grains' drag, but this case has no fluid: leave on_fluid=False."
+        )
     values = {
         "friction": friction,
         "restitution": restitution,
@@ -165,42 +168,62 @@ def add_grains(
     walls, grid, radius = _contact_search(
         scene, position, active, kind, index, sizes, courant, candidate_capacity
     )
-    k = CONTACT_CAPACITY[dim] if contact_capacity is None else int(contact_capacity)
-    mass = (
-        float(grain_params.density) - (float(params.density) if submerged else 0.0)
-    ) * bodies.sphere_volume(sizes)
     bed = _attached(attached, selected, index)
-    if packed_density is None and bed.any():
-        packed_density = _bed_density(scene, position, active, kind, index[bed])
-    body_kinds = [int(Kind.RIGID), int(Kind.ELASTIC)]
-    touches_bodies = bool(np.any(np.isin(kind[walls], body_kinds)))
-    if on_fluid and not submerged:
-        raise ValueError(
-            "on_fluid=True (scene setting on_fluid) asks the fluid to feel the "
-            "grains' drag, but this case has no fluid: leave on_fluid=False."
+    if packed_density is None:
+        packed_density = (
+            _bed_density(scene, position, active, kind, index[bed])
+            if bed.any()
+            else scene.n0
         )
-    if substeps is None:
-        step = bodies.rule_step(mass.min(), float(grain_params.stiffness))
-        substeps = max(1, math.ceil(float(params.dt) / step * (1 - 1e-9)))
+    body_kinds = [int(Kind.RIGID), int(Kind.ELASTIC)]
     model = bodies.Grains(
-        count=m,
-        spacing=l0,
+        count=len(index),
+        spacing=scene.spacing,
         grid=grid,
         search_radius=radius,
-        contact_capacity=k,
-        substeps=int(substeps),
+        contact_capacity=CONTACT_CAPACITY[scene.dim]
+        if contact_capacity is None
+        else int(contact_capacity),
+        substeps=_substeps(params, grain_params, sizes, submerged, substeps),
         submerged=submerged,
-        on_bodies=bool(on_bodies) and touches_bodies,
+        on_bodies=bool(on_bodies) and bool(np.isin(kind[walls], body_kinds).any()),
         on_fluid=bool(on_fluid),
         bed=bool(bed.any()),
         detach_distance=float(detach_distance),
         packing=_packing(scene, packed_density, bed, junction_correction),
-        packed_density=float(scene.n0 if packed_density is None else packed_density),
+        packed_density=float(packed_density),
         courant=float(courant),
         dashpot_ramp=float(dashpot_ramp),
     )
+    sub = _grain_state(scene, state, model, index, walls, sizes, bed)
+    kind[index] = np.where(bed, int(Kind.WALL), int(Kind.SEDIMENT))
+    new_params = dataclasses.replace(params, grains=grain_params)
+    new_state = dataclasses.replace(
+        state, kind=jnp.asarray(kind, state.kind.dtype), grains=sub
+    )
+    model.check(new_params, new_state)
+    if scene.time_step is None:
+        model.check_body_step(new_params, new_state)
+    return dataclasses.replace(scene, grains=model), new_params, new_state
+
+
+def _substeps(params: Params, grain_params, sizes, submerged: bool, substeps):
+    """The DEM sub-steps per step: `substeps`, or the fewest that keep a sub-step
+    within seed 002's rule step of the lightest grain at `Params.dt`."""
+    if substeps is not None:
+        return int(substeps)
+    water = float(params.density) if submerged else 0.0
+    mass = (float(grain_params.density) - water) * bodies.sphere_volume(sizes)
+    step = bodies.rule_step(mass.min(), float(grain_params.stiffness))
+    return max(1, math.ceil(float(params.dt) / step * (1 - 1e-9)))
+
+
+def _grain_state(scene: Scene, state: State, model, index, walls, sizes, bed):
+    """The grains' sub-state at the start: no contacts, no spin, nothing pushed
+    yet, the bed's grains attached where they lie."""
+    m, k, dim = model.count, model.contact_capacity, scene.dim
     dtype = state.position.dtype
-    sub = GrainState(
+    return GrainState(
         index=jnp.asarray(index, jnp.int32),
         walls=jnp.asarray(walls, jnp.int32),
         diameter=jnp.asarray(sizes, dtype),
@@ -211,17 +234,8 @@ def add_grains(
         contact_count=jnp.zeros((m,), jnp.int32),
         reaction=jnp.zeros((scene.capacity if model.reacts else 0, dim), dtype),
         attached=jnp.asarray(bed),
-        origin=jnp.asarray(position[index], dtype),
+        origin=jnp.asarray(state.position)[index],
     )
-    kind[index] = np.where(bed, int(Kind.WALL), int(Kind.SEDIMENT))
-    new_params = dataclasses.replace(params, grains=grain_params)
-    new_state = dataclasses.replace(
-        state, kind=jnp.asarray(kind, state.kind.dtype), grains=sub
-    )
-    model.check(new_params, new_state)
-    if scene.time_step is None:
-        model.check_body_step(new_params, new_state)
-    return dataclasses.replace(scene, grains=model), new_params, new_state
 
 
 def _attached(attached, selected: np.ndarray, index: np.ndarray) -> np.ndarray:
