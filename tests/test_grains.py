@@ -705,16 +705,21 @@ def test_a_block_rests_on_grains_that_carry_its_weight_to_the_floor():
     assert sunk < grain_top
 
 
-def test_a_block_and_a_grain_exchange_their_momentum_whole():
+@pytest.mark.parametrize("dim", [2, 3])
+def test_a_block_and_a_grain_exchange_their_momentum_whole(dim):
     """With no gravity, a block moving at 0.3 m/s strikes a grain at rest: the
-    momentum per unit depth of the block, M V, and of the grain, m v / d, plus
-    the impulse of the last step's reaction still to be delivered, keeps its
-    value to round-off, while the grain is sent off."""
+    momentum of the block, M V, and of the grain, m v, plus the impulse of the
+    last step's reaction still to be delivered, keeps its value to round-off,
+    while the grain is sent off (2-D: per unit depth, m v / d for the grain,
+    a row of spheres d apart)."""
     l0 = 0.005
-    block = geometry.block([0.0, 0.0], [0.02, 0.01], l0)
-    position = np.concatenate([[[0.03, 0.006]], block])
-    scene = jaxmps.make_scene(position, l0, ([-0.03, -0.03], [0.09, 0.05]))
-    params = jaxmps.make_params(2, dt=2e-4, gravity=0.0)
+    size = [0.02, 0.01] if dim == 2 else [0.02, 0.01, 0.01]
+    block = geometry.block([0.0] * dim, size, l0)
+    grain = [0.03, 0.006] if dim == 2 else [0.03, 0.006, 0.004]
+    position = np.concatenate([[grain], block])
+    domain = ([-0.03] * dim, [0.09] + [0.05] * (dim - 1))
+    scene = jaxmps.make_scene(position, l0, domain)
+    params = jaxmps.make_params(dim, dt=2e-4, gravity=0.0)
     state = jaxmps.make_state(scene, position, np.zeros(len(position), np.int32))
     body = np.full(len(position), -1)
     body[1:] = 0
@@ -731,16 +736,20 @@ def test_a_block_and_a_grain_exchange_their_momentum_whole():
         density=2650.0,
         speed=0.3,
     )
-    rigid = dataclasses.replace(state.rigid, velocity=jnp.asarray([[0.3, 0.0]]))
+    start = np.zeros((1, dim))
+    start[0, 0] = 0.3
+    rigid = dataclasses.replace(state.rigid, velocity=jnp.asarray(start))
     state = dataclasses.replace(
         state, velocity=state.velocity.at[1:, 0].set(0.3), rigid=rigid
     )
-    mass = 2000.0 * len(block) * l0**2
+    volume = l0**dim
+    mass = 2000.0 * len(block) * volume
     grain = float(scene.grains.mass(params, state.grains.diameter)[0])
+    row = l0 if dim == 2 else 1.0
 
     def momentum(s):
-        pending = float(params.dt) * l0**2 * np.asarray(s.grains.reaction).sum(0)
-        own = grain * np.asarray(s.velocity[0]) / l0
+        pending = float(params.dt) * volume * np.asarray(s.grains.reaction).sum(0)
+        own = grain * np.asarray(s.velocity[0]) / row
         return mass * np.asarray(s.rigid.velocity[0]) + own + pending
 
     out = jaxmps.simulate(scene, params, state, times=[0.08])
