@@ -925,6 +925,8 @@ def test_a_grain_knocked_out_of_the_bed_detaches_for_good():
     final = out.state
     free = ~np.asarray(final.grains.attached)
     assert free[top] and free.sum() == 1
+    saved = np.asarray(out.saved.bodies["attached"])  # per frame
+    assert not saved[0, top] and saved[0].sum() == len(bed) - 1
     assert int(final.kind[top]) == int(Kind.SEDIMENT)
     others = np.delete(np.arange(len(bed)), top)
     assert np.all(np.asarray(final.kind)[others] == int(Kind.WALL))

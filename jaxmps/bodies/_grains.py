@@ -117,7 +117,12 @@ class Grains(AbstractBodyModel):
     """
 
     name: ClassVar[str] = "grains"
-    frame_fields: ClassVar[tuple[str, ...]] = ("spin", "contact_count", "fluid_force")
+    frame_fields: ClassVar[tuple[str, ...]] = (
+        "spin",
+        "contact_count",
+        "fluid_force",
+        "attached",
+    )
     count: int
     spacing: float
     grid: Grid
