@@ -3,13 +3,14 @@ grains on the right (grains attached to the bed as walls, T11): is the fluid's
 pressure continuous across the junction, with and without the number-density
 correction n0 / n_s0 of the grains' pairs (seed 002 eq. 3.73), with the walls'
 pressure from the equation of state or from the facing fluid particle
-(`Explicit.wall_pressure`)?
+(`Explicit.wall_pressure`), or solved with the fluid's ("solved": the
+semi-implicit step, dt = 1 ms)?
 
 A 0.2 m wide tank, 4 l0 of bed under 0.1 m of water, l0 = 5 mm, explicit E-MPS
-(c = 10 m/s), 1 s; averages over 0.4-1 s, saves every 25 steps. For each half:
-the pressure of the first fluid layer above the bed and at mid-depth, as shares
-of rho g (surface - y), and the standoff of the fluid from the bed's top row
-(lowest fluid centre minus the top row's, in l0).
+(c = 10 m/s) or semi-implicit MPS, 1 s; averages over 0.4-1 s, saves every 25
+steps. For each half: the pressure of the first fluid layer above the bed and
+at mid-depth, as shares of rho g (surface - y), and the standoff of the fluid
+from the bed's top row (lowest fluid centre minus the top row's, in l0).
 
 Run: python validation/bed_junction.py  (writes results/bed_junction_cpu.{json,md})
 """
@@ -45,9 +46,13 @@ def case(correct: bool, wall_pressure: str):
     )
     top = 1.5 * (bed_top + DEPTH)
     domain = ([-0.03, -0.03], [WIDTH + 0.03, top + 0.03])
-    scheme = jaxmps.schemes.explicit(jaxmps.Explicit(wall_pressure=wall_pressure))
+    if wall_pressure == "solved":  # the semi-implicit solve's walls
+        scheme, dt = jaxmps.schemes.standard(), 1e-3
+    else:
+        solver = jaxmps.Explicit(wall_pressure=wall_pressure)
+        scheme, dt = jaxmps.schemes.explicit(solver), 0.4 * L0 / 10.0
     scene = jaxmps.make_scene(position, L0, domain, scheme=scheme)
-    params = jaxmps.make_params(2, dt=0.4 * L0 / 10.0)
+    params = jaxmps.make_params(2, dt=dt)
     state = jaxmps.make_state(scene, position, kind)
     grains = np.arange(len(position)) < len(bed)
     extra = {"junction_correction": correct}
@@ -110,7 +115,7 @@ def measure(correct: bool, wall_pressure: str) -> dict:
 def main() -> None:
     rows = [
         measure(correct, wall)
-        for wall in ("equation", "facing")
+        for wall in ("equation", "facing", "solved")
         for correct in (True, False)
     ]
     info = machine_info()
@@ -122,7 +127,8 @@ def main() -> None:
         "# Still water over a lattice / packed-grain bed junction (T11)",
         "",
         f"l0 = {L0} m, {ROWS} l0 of bed, {DEPTH} m of water, explicit E-MPS, "
-        f"{T} s, averages over 0.4-1 s; mid-depth: within 4 l0 of half the depth. "
+        f"{T} s, averages over 0.4-1 s; mid-depth: within 4 l0 of half the depth; "
+        "wall pressure 'solved': the semi-implicit step (dt = 1 ms). "
         f"Machine: {info.get('cpu_model', '?')} "
         f"(load {info.get('loadavg_1min_start', 0):.1f}).",
         "",
