@@ -154,8 +154,10 @@ def _plan(
             "(`dt_max` under adaptive steps)."
         )
     # Saves closer than a millionth of an interval to the next are merged into it
-    # (t_end a float's rounding beyond a multiple of save_every).
-    slack = 1e-6 * save_every
+    # (t_end a float's rounding beyond a multiple of save_every); an interval
+    # longer than the run is the run (one save, at t_end).
+    span = t_end - t_now
+    slack = 1e-6 * (min(save_every, span) if span > 0 else save_every)
     count = (t_end - t_now) / save_every
     if not count <= _MAX_SAVES:
         raise ValueError(
