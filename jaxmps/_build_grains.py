@@ -149,19 +149,9 @@ def add_grains(
         "lift": lift,
         "rolling": rolling,
     }
-    _check_material(params, values, submerged)
-    if stiffness is None:
-        values["stiffness"] = _stiffness(
-            params,
-            position,
-            selected | fluid,
-            sizes,
-            density,
-            submerged,
-            overlap,
-            speed,
-        )
-    grain_params = _grain_params(params, values)
+    grain_params = _material(
+        params, values, position, selected | fluid, sizes, submerged, overlap, speed
+    )
     _refuse_overlaps(position[index], sizes)
     if submerged:
         _refuse_large(sizes, scene.r_e)
@@ -205,6 +195,25 @@ def add_grains(
     if scene.time_step is None:
         model.check_body_step(new_params, new_state)
     return dataclasses.replace(scene, grains=model), new_params, new_state
+
+
+def _material(params, values, position, mobile, sizes, submerged, overlap, speed):
+    """The grains' `GrainParams` from the material settings, checked, with the
+    default stiffness where none is given (`_stiffness`)."""
+    _check_material(params, values, submerged)
+    if values["stiffness"] is None:
+        values = dict(values)
+        values["stiffness"] = _stiffness(
+            params,
+            position,
+            mobile,
+            sizes,
+            values["density"],
+            submerged,
+            overlap,
+            speed,
+        )
+    return _grain_params(params, values)
 
 
 def _substeps(params: Params, grain_params, sizes, submerged: bool, substeps):

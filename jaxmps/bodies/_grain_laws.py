@@ -236,6 +236,20 @@ def _rolling_torque(
     return jnp.stack([-jnp.sum(scale * w, axis=1) for w in relative], axis=-1)
 
 
+def _wall_reaction(on_grain, weight, partner, pressing, m: int, w: int):
+    """Newton's third law slot by slot: the force on each wall particle is minus
+    the slots' forces on the grains that press it, each times its grain's
+    `weight` (grain partners and empty slots drop), shape (w, d)."""
+    target = jnp.where(pressing, partner - m, w)
+    return jnp.stack(
+        [
+            jnp.zeros((w,), f.dtype).at[target].add(-f * weight[:, None], mode="drop")
+            for f in on_grain
+        ],
+        axis=-1,
+    )
+
+
 def contact_forces(
     x: Float[Array, "m d"],
     v: Float[Array, "m d"],
@@ -337,17 +351,8 @@ def contact_forces(
     force = jnp.stack([jnp.sum(f, axis=1) for f in on_grain], axis=-1)
     wall_force = None
     if reaction_weight is not None:
-        # Newton's third law, slot by slot; grain partners and empty slots drop.
-        target = jnp.where(is_wall & touching, partner - m, w)
-        wall_force = jnp.stack(
-            [
-                jnp.zeros((w,), f.dtype)
-                .at[target]
-                .add(-f * reaction_weight[:, None], mode="drop")
-                for f in on_grain
-            ],
-            axis=-1,
-        )
+        pressing = is_wall & touching
+        wall_force = _wall_reaction(on_grain, reaction_weight, partner, pressing, m, w)
     lever = tuple(radius_i * n for n in normal)
     if dim == 2:
         torque = jnp.sum(_cross_2d(lever, friction), axis=1)[:, None]

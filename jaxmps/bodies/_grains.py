@@ -333,12 +333,11 @@ class Grains(AbstractBodyModel):
         """One step of the grains, after the fluid stages (seed 002 §5.7): the
         fluid velocity around each grain, the contact candidates and their
         carried springs, then `substeps` symplectic-Euler sub-steps of the
-        contact, fluid and gravity forces; flags contact overflow and a step
-        beyond the grains' limits."""
-        gs, g = state.grains, params.grains
-        dt = params.dt
+        contact, fluid and gravity forces (`_integrate`); what they pushed
+        (`_reaction`), the bed's detachments (`_detach`); flags contact overflow
+        and a step beyond the grains' limits."""
+        gs = state.grains
         x = state.position[gs.index]
-        v = state.velocity[gs.index]
         walls = _Walls(
             position=state.position[gs.walls],
             velocity=state.velocity[gs.walls],
@@ -346,55 +345,10 @@ class Grains(AbstractBodyModel):
             diameter=self.spacing,
         )
         partner, shear, overflow = self._candidates(state, x, walls)
-        up = _up(params.gravity)
-        flow = (
-            self._fluid_velocity(disc, state, load, up)
-            if self.submerged
-            else jnp.zeros_like(x)
-        )
-        mass = self.mass(params, gs.diameter)
-        material = _Material.of(self, params, mass)
-        h = dt / self.substeps
         # In 2-D a grain is a row of spheres d apart: per unit depth, F / d.
         reach = 1.0 / gs.diameter if disc.dim == 2 else jnp.ones_like(gs.diameter)
-
-        def substep(carry, _):
-            x, v, spin, shear = carry
-            contact = contact_forces(
-                x,
-                v,
-                spin,
-                gs.diameter,
-                partner,
-                shear,
-                walls,
-                material,
-                h,
-                reach if self.reacts else None,
-            )
-            fluid = (
-                fluid_force(
-                    flow - v,
-                    gs.diameter,
-                    params.density,
-                    params.viscosity,
-                    g.lift,
-                    up,
-                )
-                if self.submerged
-                else jnp.zeros_like(v)
-            )
-            force = contact.force + fluid + mass[:, None] * params.gravity[None, :]
-            v = v + h * force / mass[:, None]
-            x = x + h * v
-            inertia = 0.1 * mass * gs.diameter**2
-            spin = spin + h * contact.torque / inertia[:, None]
-            out = (fluid, contact.count, contact.wall_force)
-            return (x, v, spin, contact.shear), out
-
-        carry = (x, v, gs.spin, shear)
-        (x, v, spin, shear), (fluid, count, on_walls) = jax.lax.scan(
-            substep, carry, None, length=self.substeps
+        (x, v, spin, shear), (fluid, count, on_walls) = self._integrate(
+            disc, params, state, load, walls, partner, shear, reach
         )
         active = state.active[gs.index]
         x = jnp.where(active[:, None], x, state.position[gs.index])
@@ -402,17 +356,7 @@ class Grains(AbstractBodyModel):
         reaction = gs.reaction
         if self.reacts:
             reaction = self._reaction(disc, state, load, on_walls, fluid, reach)
-        attached, kind = gs.attached, state.kind
-        if self.bed:
-            # Seed 002 §5.5: a grain that has left its place is free for good.
-            # Choice: "left" is moved detach_distance diameters from its start.
-            moved = (
-                jnp.sum((x - gs.origin) ** 2, axis=-1)
-                > (self.detach_distance * gs.diameter) ** 2
-            )
-            attached = attached & ~moved
-            now = jnp.where(attached, int(Kind.WALL), int(Kind.SEDIMENT))
-            kind = kind.at[gs.index].set(now.astype(kind.dtype))
+        attached, kind = self._detach(state, x)
         grains = dataclasses.replace(
             gs,
             partner=partner,
@@ -423,12 +367,10 @@ class Grains(AbstractBodyModel):
             reaction=reaction,
             attached=attached,
         )
-        speed = jnp.sqrt(jnp.max(jnp.sum(v**2, axis=-1)))
-        limit = self.substeps * self.substep_limit(params, gs.diameter)
-        limit = jnp.minimum(limit, self.body_limit(params, gs.diameter, disc.dim))
-        beyond = (dt > limit * (1 + 1e-9)) | (speed * dt > self.courant * self.spacing)
         result = update_result(state.result, overflow, Result.contact_overflow)
-        result = update_result(result, beyond, Result.step_too_large)
+        result = update_result(
+            result, self._beyond(disc, params, gs, v), Result.step_too_large
+        )
         return dataclasses.replace(
             state,
             position=state.position.at[gs.index].set(x),
@@ -437,6 +379,72 @@ class Grains(AbstractBodyModel):
             grains=grains,
             result=result,
         )
+
+    def _integrate(self, disc, params, state, load, walls, partner, shear, reach):
+        """The `substeps` symplectic-Euler sub-steps of the step: the final
+        (positions, velocities, spins, springs) and, per sub-step, the fluid
+        force on each grain, its contact count and (`reacts`) the force on each
+        wall particle."""
+        gs, g = state.grains, params.grains
+        up = _up(params.gravity)
+        x, v = state.position[gs.index], state.velocity[gs.index]
+        flow = (
+            self._fluid_velocity(disc, state, load, up)
+            if self.submerged
+            else jnp.zeros_like(x)
+        )
+        mass = self.mass(params, gs.diameter)
+        inertia = 0.1 * mass * gs.diameter**2
+        material = _Material.of(self, params, mass)
+        h = params.dt / self.substeps
+        weight = reach if self.reacts else None
+
+        def substep(carry, _):
+            x, v, spin, shear = carry
+            contact = contact_forces(
+                x, v, spin, gs.diameter, partner, shear, walls, material, h, weight
+            )
+            fluid = (
+                fluid_force(
+                    flow - v, gs.diameter, params.density, params.viscosity, g.lift, up
+                )
+                if self.submerged
+                else jnp.zeros_like(v)
+            )
+            force = contact.force + fluid + mass[:, None] * params.gravity[None, :]
+            v = v + h * force / mass[:, None]
+            x = x + h * v
+            spin = spin + h * contact.torque / inertia[:, None]
+            out = (fluid, contact.count, contact.wall_force)
+            return (x, v, spin, contact.shear), out
+
+        carry = (x, v, gs.spin, shear)
+        return jax.lax.scan(substep, carry, None, length=self.substeps)
+
+    def _detach(self, state: State, x):
+        """The grains still attached after the step, and the kinds: a grain of
+        the bed (`bed`) that has left its place is free for good (seed 002
+        §5.5). # Choice: "left" is moved `detach_distance` diameters from its
+        start (the seed gives no criterion)."""
+        gs, kind = state.grains, state.kind
+        if not self.bed:
+            return gs.attached, kind
+        moved = (
+            jnp.sum((x - gs.origin) ** 2, axis=-1)
+            > (self.detach_distance * gs.diameter) ** 2
+        )
+        attached = gs.attached & ~moved
+        now = jnp.where(attached, int(Kind.WALL), int(Kind.SEDIMENT))
+        return attached, kind.at[gs.index].set(now.astype(kind.dtype))
+
+    def _beyond(self, disc, params, gs, v):
+        """Whether the step was beyond the grains' limits: the sub-steps', the
+        bodies' (`body_limit`), or moving a grain more than `courant` l0."""
+        speed = jnp.sqrt(jnp.max(jnp.sum(v**2, axis=-1)))
+        limit = self.substeps * self.substep_limit(params, gs.diameter)
+        limit = jnp.minimum(limit, self.body_limit(params, gs.diameter, disc.dim))
+        dt = params.dt
+        return (dt > limit * (1 + 1e-9)) | (speed * dt > self.courant * self.spacing)
 
     def _reaction(self, disc, state, load, on_walls, fluid, reach):
         """What the grains exerted over the step, per unit volume of each
