@@ -379,7 +379,7 @@ def _tilt_body_pressure(c, depth: float) -> str:
     return "fluid" if wet else "pairs"
 
 
-def _coulomb(c) -> Coulomb:
+def coulomb(c) -> Coulomb:
     """The Coulomb law of the settings `friction_normal` and `friction_torque`
     (ValueError naming a normal force that does not exist)."""
     if c["friction_normal"] not in _NORMALS:
@@ -493,7 +493,7 @@ def friction_tilt(**overrides) -> Case:
         lower_box, [x0 + a] + ([2 * l0 + a] if dim == 3 else []) + [tall], l0
     )
     height = 1.2 * tall
-    friction = _coulomb(c)
+    friction = coulomb(c)
     fluid = np.zeros((0, dim))
     depth = float(c["water_depth"])
     if depth > 0:
@@ -581,7 +581,7 @@ def block_stack(**overrides) -> Case:
     Probes per block k: `block{k}_x`, `block{k}_y`, `block{k}_angle`.
     """
     c = resolve("block_stack", BLOCK_STACK, overrides)
-    friction = _coulomb(c)
+    friction = coulomb(c)
     l0, dim = c["spacing"], int(c["dim"])
     if dim != 2:
         raise ValueError("block_stack is 2-D (dim=2).")

@@ -237,6 +237,19 @@ RULES = {
     "gauge_x": Range(-1e4, 1e4),
     "gap": _OFFSET,
     "weir_height": _OFFSET,
+    "tail_depth": _LENGTH,
+    "crest_length": _LENGTH,
+    "step_height": _OFFSET,
+    "apron_length": _OFFSET,
+    "reach_length": _OFFSET,
+    "transition_length": _OFFSET,
+    "bed_lowering": _OFFSET,
+    "scour_length": _OFFSET,
+    "scour_depth": _OFFSET,
+    "scour_centre": _LENGTH,
+    "scour_exposure": _OFFSET,
+    "block_length": _LENGTH,
+    "block_gap": _OFFSET,
     "initial_draft": _OFFSET,
     "bilge_radius": _OFFSET,
     "centre_of_gravity": _OFFSET,
@@ -264,8 +277,10 @@ RULES = {
     "pool": Range(0, 2**31 - 1),
     "substeps": _COUNT,
     "blocks": Range(1, 64),
+    "block_rows": Range(0, 1000),
     # ratios and coefficients
     "density_ratio": _POSITIVE,
+    "block_density": _POSITIVE,
     "mu_static": _NON_NEGATIVE,
     "mu_kinetic": _NON_NEGATIVE,
     "youngs_modulus": _POSITIVE,
@@ -322,6 +337,7 @@ _WHOLE = (
     "contact_capacity",
     "seed",
     "blocks",
+    "block_rows",
 )
 
 

@@ -8,27 +8,82 @@ import numpy as np
 from jaxtyping import Array, Float
 
 from .. import geometry
-from .._build import make_state
+from .._build import add_rigid_bodies, make_state
 from .._params import Params
 from .._scene import Scene
 from .._state import State
 from .._types import Kind
 from ..fluid import Inflow, InflowParams, Outflow
+from ._bodies import coulomb
 from ._case import Case
 from ._common import boundary_layers, case_params, case_scene, resolve, whole
-from ._probes import AbstractProbe, WaterLevel
+from ._flume_bed import (
+    bed_particles,
+    bed_profile,
+    check_lengths,
+    fill,
+    optional,
+    stored_area,
+)
+from ._probes import AbstractProbe, BodyValue, WaterLevel
 
 DEFAULTS = {
     "discharge": 0.04,  # unit discharge q [m^2/s] (seed 002 Ch. 4)
     "inflow_depth": 0.045,  # h_in [m] (seed 002 Ch. 4: 4.5 cm on the weir crest)
     "bed_length": 1.0,
     "weir_height": 0.0,  # tail weir at the downstream end; 0 = free overfall
+    # The groundsill (seed 002 §3, §6): its crest, where the inflow enters (None:
+    # the whole bed is one flat crest), a step down by step_height to an apron,
+    # the reach at the apron's level (blocks and a scour hole lie in it), a
+    # transition falling by bed_lowering (Delta H) to the lowered bed.
+    "crest_length": None,
+    "step_height": 0.0,
+    "apron_length": 0.0,
+    "reach_length": 0.0,
+    "transition_length": 0.0,
+    "bed_lowering": 0.0,
+    # A fixed-bed scour hole just below the blocks (or the apron): seed 002's
+    # Method A shape, from depth scour_exposure at its upstream end to
+    # scour_depth at scour_centre (None: the middle) and back up at scour_length.
+    "scour_length": 0.0,
+    "scour_depth": 0.0,
+    "scour_centre": None,
+    "scour_exposure": 0.0,
+    # Rows of bed-protection blocks (PMS rigid bodies, seed 002 §4, §6.4) from the
+    # apron's end downstream, block_gap apart, their tops level with the apron
+    # (they sit in a recess of the bed).
+    "block_rows": 0,
+    "block_length": 0.019,
+    "block_height": 0.013,
+    "block_gap": 0.0,
+    "block_density": 2300.0,
+    "mu_static": 0.6,
+    "mu_kinetic": None,
+    "friction_normal": "submerged_weight",
+    "friction_torque": True,
     "initial_fill": True,  # start with the bed covered at h_in moving at q/h_in
+    # ... and standing at least tail_depth over the bed's end (None: no more),
+    # moving at q / depth: a start near the level a tail weir holds.
+    "tail_depth": None,
     "pool": None,  # inactive slots for the inflow (default: enough for t_end)
     "spacing": 0.005,
     "dim": 2,
     "t_end": 2.0,
 }
+
+# The settings that are lengths along or across the bed, rounded to whole
+# spacings (0 stays 0).
+_PIECES = (
+    "step_height",
+    "apron_length",
+    "reach_length",
+    "transition_length",
+    "bed_lowering",
+    "scour_length",
+    "scour_depth",
+    "scour_exposure",
+    "block_gap",
+)
 
 
 class FluidCount(AbstractProbe):
@@ -48,8 +103,36 @@ def flume(**overrides) -> Case:
     spacing past it) or over a tail weir of `weir_height` (deleted once past its
     downstream face).
 
-    # Choice: seed 002's Ch. 4 inflow (q = 0.04 m^2/s, h_in = 4.5 cm, uniform
-    # velocity) on a flat 1 m bed; its step, crest and slope are not modelled here.
+    The bed is flat by default (seed 002's Ch. 4 inflow on a flat bed). With
+    `crest_length` it is a groundsill (seed 002 §3, §6): the inflow enters on
+    its crest, which ends in a step `step_height` down to an apron of
+    `apron_length`; below it a reach of `reach_length` at the apron's level, then
+    a transition falling by `bed_lowering` (Delta H) over `transition_length` to
+    the lowered bed, which runs on to `bed_length`. Seed 002's Ch. 4 step flow
+    is `crest_length=0.1, step_height=0.1, bed_length=2.6` with a tail weir; its
+    Case 2-2 groundsill `step_height=0.02, apron_length=0.1, reach_length=0.29,
+    transition_length=0.5, bed_lowering=0.02` (the main body's 3 cm in the
+    crest). A fixed-bed scour hole (`scour_length`, `scour_depth`,
+    `scour_centre`, `scour_exposure`: seed 002's Method A shape, straight
+    sides) may lie in the reach just below the apron or the blocks. Every
+    length is rounded to whole spacings. Walls line the bed's surface,
+    including its steps and slopes (a lattice staircase), with dummies behind.
+
+    `tail_depth` starts the water standing that deep over the bed's end (with a
+    tail weir: the level it will hold, near weir + (q / 1.83)^(2/3) for a
+    sharp crest), to shorten the spin-up.
+
+    `block_rows` rows of bed-protection blocks (`block_length` x `block_height`,
+    `block_density`, `block_gap` apart, the first one gap below the apron) sit
+    in a recess of the reach with their tops level with the apron: PMS rigid
+    bodies with friction `mu_static`, `mu_kinetic` against the bed and each
+    other, the normal force `friction_normal` (default seed 002's submerged
+    weight).
+
+    Probes: `fluid_count`; `level_upstream`, `level_middle`,
+    `level_downstream` (depth over the local bed at 0.25, 0.5 and 0.9 of the
+    bed); with blocks, `block{k}_x`, `block{k}_y`, `block{k}_angle` for each
+    row k counted from the apron.
     """
     c = resolve("flume", DEFAULTS, overrides)
     if int(c["dim"]) != 2:
@@ -58,48 +141,52 @@ def flume(**overrides) -> Case:
     h_in = whole(c["inflow_depth"], l0)
     length = whole(c["bed_length"], l0)
     weir = whole(c["weir_height"], l0) if c["weir_height"] > 0 else 0.0
+    c = _rounded(c, l0)
+    check_lengths(c, length)
     u_in = float(c["discharge"]) / h_in
     layers = boundary_layers(c)
     rows = int(round(h_in / l0))
+    profile = bed_profile(c, length, -(layers + 1) * l0)
+    end = profile.knots[-1, 1]
 
     # Inflow boundary: a pressure layer at x = -l0/2 and dummy layers behind it.
     inflow_pts, inflow_kind = _column(0, rows, layers, l0)
     # A fixed wall above the inflow column, so that a level raised by a tail weir
     # (or a jump) cannot spill back over the inflow boundary.
-    level, top = _heights(c, h_in, weir, length)
+    level, top = _heights(c, h_in, weir, end, length)
     # Choice: the wall rises to the top of the domain (a head-box wall), so that
     # splash thrown back upstream (off a weir or a jump) cannot leave the domain
     # over the inflow end; it falls back into the channel.
     above = int(round(max(top, level + 4 * l0) / l0)) - rows
     upstream, upstream_kind = _column(rows, above, layers, l0)
-    # Bed under the inflow (and the travel of its dummies) and the channel.
-    bed_lower = [-(layers + 1) * l0, -layers * l0]
     # The bed runs on under the weir: a weir standing on the bed's end would leave
     # a gap under its bottom row through which the bottom fluid row leaks out.
     bed_end = length + (layers * l0 if weir > 0 else 0.0)
-    bed = geometry.block(bed_lower, [bed_end, 0.0], l0)
-    bed_layer = np.rint(-bed[:, 1] / l0 - 0.5).astype(int)
-    bed_kind = np.where(bed_layer == 0, Kind.WALL, Kind.DUMMY)
-    parts = [inflow_pts, upstream, bed]
-    kinds = [inflow_kind, upstream_kind, bed_kind]
-    if weir > 0:
-        w, w_kind = _weir(length, weir, layers, l0)
-        parts.append(w)
-        kinds.append(w_kind)
-    fluid = (
-        geometry.block([0.0, 0.0], [length, h_in], l0)
-        if c["initial_fill"]
-        else np.zeros((0, 2))
-    )
-    position = np.concatenate([fluid] + parts)
+    bed, bed_kind = bed_particles(profile, bed_end, weir, layers, l0)
+    blocks, body = _blocks(c, profile, l0)
+    tail = None if c["tail_depth"] is None else end + whole(c["tail_depth"], l0)
+    fluid, depth = fill(profile, length, h_in, l0, tail)
+    free = _outside(fluid, blocks, l0) & bool(c["initial_fill"])
+    fluid, depth = fluid[free], depth[free]
+    position = np.concatenate([fluid, blocks, inflow_pts, upstream, bed])
     kind = np.concatenate(
-        [np.full(len(fluid), int(Kind.FLUID))] + [k.astype(int) for k in kinds]
+        [
+            np.full(len(fluid) + len(blocks), int(Kind.FLUID)),
+            inflow_kind,
+            upstream_kind,
+            bed_kind,
+        ]
     ).astype(np.int32)
-    n_fluid = len(fluid)
+    n_fluid, first_wall = len(fluid), len(fluid) + len(blocks)
 
-    pool = _pool(c, u_in, level, length, rows, n_fluid)
+    held = [end + level] if weir else []
+    held += [] if tail is None else [tail]
+    area = stored_area(profile, length, h_in, max(held) if held else None, l0)
+    pool = _pool(c, u_in, area, rows, n_fluid)
     capacity = len(position) + pool
-    lower = np.array([-(layers + 3) * l0, -(layers + 2) * l0 - 0.2 * length])
+    lower = np.array(
+        [-(layers + 3) * l0, profile.lowest - (layers + 2) * l0 - 0.2 * length]
+    )
     upper = np.array([length + (layers + 3) * l0, top])
     scene = case_scene(c, position, (lower, upper), kind, capacity=capacity)
     # Choice: behind a weir the outflow plane is the weir's downstream face: water
@@ -110,44 +197,123 @@ def flume(**overrides) -> Case:
     scene = _with_boundaries(
         scene,
         Inflow(
-            pressure_layer=tuple(range(n_fluid, n_fluid + rows)),
-            boundary=tuple(range(n_fluid, n_fluid + len(inflow_pts))),
+            pressure_layer=tuple(range(first_wall, first_wall + rows)),
+            boundary=tuple(range(first_wall, first_wall + len(inflow_pts))),
             origin=-0.5 * l0,
         ),
         Outflow(position=outflow_at),
     )
-    params = case_params(c, 2, u_in + math.sqrt(c["gravity"] * h_in))
+    params = case_params(
+        c, 2, u_in + math.sqrt(c["gravity"] * (h_in + c["step_height"]))
+    )
     params = _with_inflow(
         params, InflowParams(velocity=np.asarray(u_in, params.dt.dtype))
     )
     velocity = np.zeros_like(position)
-    velocity[:n_fluid, 0] = u_in
-    velocity[n_fluid : n_fluid + len(inflow_pts), 0] = u_in
+    velocity[:n_fluid, 0] = float(c["discharge"]) / depth
+    velocity[first_wall : first_wall + len(inflow_pts), 0] = u_in
     state = make_state(scene, position, kind, velocity=velocity)
     probes = (
         FluidCount("fluid_count"),
-        WaterLevel("level_upstream", 0.25 * length, 0.0, l0),
-        WaterLevel("level_middle", 0.5 * length, 0.0, l0),
-        WaterLevel("level_downstream", 0.9 * length, 0.0, l0),
+        *(
+            WaterLevel(name, at * length, float(profile.height(at * length)), l0)
+            for name, at in (
+                ("level_upstream", 0.25),
+                ("level_middle", 0.5),
+                ("level_downstream", 0.9),
+            )
+        ),
     )
+    if len(blocks):
+        scene, params, state = _add_blocks(c, scene, params, state, body, len(fluid))
+        probes += tuple(
+            probe
+            for k in range(int(c["block_rows"]))
+            for probe in (
+                BodyValue(f"block{k}_x", k, "centre", 0),
+                BodyValue(f"block{k}_y", k, "centre", 1),
+                BodyValue(f"block{k}_angle", k, "angle"),
+            )
+        )
     config = {
         **c,
         "inflow_depth": h_in,
         "bed_length": length,
         "weir_height": weir,
         "pool": pool,
+        "apron_end": profile.apron_end,
+        "protection_end": profile.protection_end,
     }
     return Case("flume", scene, params, state, probes, float(c["t_end"]), config)
 
 
-def _heights(c: dict, h_in: float, weir: float, length: float):
-    """The highest water level expected (upstream of a weir ~ crest + 1.5 h_c, a
-    broad-crested weir, with margin) and the domain's top."""
+def _rounded(c: dict, l0: float) -> dict:
+    """The bed's lengths as whole spacings (block sizes at least one)."""
+    out = {key: optional(c[key], l0) for key in _PIECES}
+    if c["crest_length"] is not None:
+        out["crest_length"] = whole(c["crest_length"], l0)
+    if c["scour_centre"] is not None:
+        out["scour_centre"] = whole(c["scour_centre"], l0)
+    if c["block_rows"]:
+        out["block_length"] = whole(c["block_length"], l0)
+        out["block_height"] = whole(c["block_height"], l0)
+    return {**c, **out}
+
+
+def _outside(points: np.ndarray, solids: np.ndarray, l0: float) -> np.ndarray:
+    """Which lattice `points` are not also points of `solids` (same lattice)."""
+    if not len(solids):
+        return np.ones(len(points), bool)
+    taken = {tuple(p) for p in np.rint(solids / l0 - 0.5).astype(int)}
+    cells = np.rint(points / l0 - 0.5).astype(int)
+    return np.array([tuple(p) not in taken for p in cells], bool)
+
+
+def _blocks(c: dict, profile, l0: float):
+    """The blocks' lattice points and each one's row (from the apron)."""
+    count = int(c["block_rows"])
+    if not count:
+        return np.zeros((0, 2)), np.zeros(0, int)
+    a, h, gap = c["block_length"], c["block_height"], c["block_gap"]
+    top = -c["step_height"]
+    blocks = [
+        geometry.block(
+            [profile.apron_end + gap + k * (a + gap), top - h],
+            [profile.apron_end + gap + k * (a + gap) + a, top],
+            l0,
+        )
+        for k in range(count)
+    ]
+    body = np.concatenate([np.full(len(b), k) for k, b in enumerate(blocks)])
+    return np.concatenate(blocks), body
+
+
+def _add_blocks(c: dict, scene, params, state, body, first: int):
+    """The blocks (from slot `first`) as PMS rigid bodies with friction."""
+    owner = np.full(scene.capacity, -1)
+    owner[first : first + len(body)] = body
+    return add_rigid_bodies(
+        scene,
+        params,
+        state,
+        owner,
+        density=c["block_density"],
+        mu_static=c["mu_static"],
+        mu_kinetic=c["mu_kinetic"],
+        friction=coulomb(c),
+        pressure="pairs",
+    )
+
+
+def _heights(c: dict, h_in: float, weir: float, end: float, length: float):
+    """The highest water level expected over the bed's end (behind a weir ~ crest
+    + 1.5 h_c, a broad-crested weir, with margin) and the domain's top (the
+    crest is at 0, the bed's end at `end`)."""
     h_c = (float(c["discharge"]) ** 2 / c["gravity"]) ** (1 / 3)  # critical depth
     level = weir + 2 * max(h_c, h_in) if weir > 0 else h_in
     margin = c["domain_margin"]
     # Choice: room above the water for splash (a jet off a tail weir rises ~0.3 m).
-    top = max(h_in, weir) + (max(0.3 * length, 0.4) if margin is None else margin)
+    top = max(h_in, end + weir) + (max(0.3 * length, 0.4) if margin is None else margin)
     return level, top
 
 
@@ -175,15 +341,16 @@ def _weir(length: float, weir: float, layers: int, l0: float):
     return w, np.where(layer == 0, Kind.WALL, Kind.DUMMY)
 
 
-def _pool(c: dict, u_in: float, level: float, length: float, rows: int, n_fluid: int):
+def _pool(c: dict, u_in: float, area: float, rows: int, n_fluid: int):
     """Inactive slots for the inflow: the `pool` setting, or enough for what enters
-    over t_end on a dry bed, for the bed filled up to 1.5 x the level a tail weir
-    holds, or for the inflow depth (the flow deepens as it develops)."""
+    over t_end on a dry bed, for 1.5 x the water `area` the bed holds at the
+    inflow depth or up to the level a tail weir holds, or for the inflow depth
+    (the flow deepens as it develops)."""
     if c["pool"] is not None:
         return int(c["pool"])
     l0 = c["spacing"]
     columns = math.ceil(u_in * float(c["t_end"]) / l0) + 2
-    stored = math.ceil(1.5 * level * length / l0**2) + 4 * rows - n_fluid
+    stored = math.ceil(1.5 * area / l0**2) + 4 * rows - n_fluid
     return max(rows * columns if not c["initial_fill"] else 0, stored, 4 * rows)
 
 
