@@ -213,3 +213,19 @@ def test_brink_depth_of_the_free_overfall():
     assert brink / h_c == pytest.approx(0.715, rel=0.08)
     upstream = depth(0.05, 0.1)
     assert 1.0 < upstream / h_c < 1.3
+
+
+def test_blocks_rest_in_their_recess_in_still_water():
+    """Four rows in the recess, the last one's face against the lip of a scour
+    hole, in still water (q -> 0): the bed carries them, none moves by 0.05 l0
+    or tilts by 0.1 degrees in 0.05 s (a free fall would take it 12 mm). The
+    contact push once took the recess's concave corners and the hole's lip for
+    overlaps of 0.3 l0: the walls pushed a block with 65-330 N/m against its
+    4.9 N/m weight and threw the last one out, spinning 300 degrees in 0.05 s."""
+    case = jaxmps.scenes.flume(**{**SILL, "discharge": 1e-6})
+    times = np.linspace(0.005, 0.05, 10)
+    out = jaxmps.simulate(case.scene, case.params, case.state, times=times)
+    rigid = out.saved.bodies
+    moved = np.asarray(rigid["centre"]) - np.asarray(case.state.rigid.centre)[None]
+    assert np.abs(moved).max() < 0.05 * SILL["spacing"]
+    assert np.degrees(np.abs(np.asarray(rigid["orientation"]))).max() < 0.1
