@@ -2,12 +2,14 @@
 seed 002 §4): the passively moving solid of Koshizuka et al."""
 
 import dataclasses
+import itertools
 from collections.abc import Callable
 from typing import ClassVar
 
 import equinox as eqx
 import jax
 import jax.numpy as jnp
+import numpy as np
 from jaxtyping import Array, Bool, Float, Int, Shaped
 
 from .._coupling import Coupling, FluidLoad
@@ -412,8 +414,9 @@ class RigidBodies(AbstractBodyModel):
         of the step).
 
         A body particle i with wall particles within the contact distance gets a
-        surface normal n_i (the mean of those partners' outward normals) and a gap
-        h_i (the least of their distances along n_i), and the force
+        surface normal n_i and a gap h_i from the partners that face it (the mean
+        of their normals, the least distance from their planes; see
+        `_wall_surface`), and the force
             F_i = max(k (l0 - h_i) - c v_n, 0) n_i   where h_i < l0,
         v_n the normal velocity of i's rigid motion at step k relative to the
         partners' mean. Between two bodies, each pair (i, j) closer than l0
@@ -462,9 +465,7 @@ class RigidBodies(AbstractBodyModel):
         if self.count < 2:  # no pair of bodies: nothing to compute
             pressed = jnp.zeros_like(near)
         velocity = jnp.where(member[:, None], rigid_k, state.velocity)
-        normal, gap, v_wall = _surface(
-            on_wall, pairs, outward, velocity, l0, facing=True
-        )
+        normal, gap, v_wall = _wall_surface(on_wall, pairs, outward, velocity, l0)
         count = body_sum(
             ((gap < l0) | jnp.any(pressed, axis=1) | _partnered(pressed, pairs)).astype(
                 mass.dtype
@@ -727,49 +728,102 @@ def _outward(pairs, group: Int[Array, " n"]) -> Float[Array, "n d"]:
     return -inward / length[:, None]
 
 
-def _surface(
-    close: Bool[Array, "n k"], pairs, outward, velocity, l0, facing: bool = False
-):
+def _surface(close: Bool[Array, "n k"], pairs, outward, velocity, l0):
     """The surface that the partners in `close` present to each particle: the
-    mean of their outward normals, the gap (2 l0 where none), and the partners'
-    mean velocity.
-
-    The gap is the least over the partners of the particle's distance from each
-    one along the mean normal or, where that is larger, along the partner's own
-    normal (its distance from the partner's plane).
-
-    # Choice: along the mean normal alone, a particle in a concave corner (a block
-    # in a recess, against a wall and the floor) has a diagonal mean normal, and
-    # its floor partner l0 below lies only l0 / sqrt(2) along it: a false overlap
-    # of 0.29 l0 whose push lifted and spun a block resting in a recess (65-330
-    # N/m against its 4.9 N/m weight). The partner's own plane keeps that gap at
-    # l0; on a flat wall both distances agree, and at a convex edge the mean
-    # normal's is the larger. With `facing`, only partners whose plane the
-    # particle lies in front of count: at a wall's convex edge (the lip of a scour
-    # hole beside a block's face) the edge particle's normal points away from a
-    # body particle level with it, which the mean normal then found 0.3 l0 or
-    # less from it.
-    """
-    own = [take_rows(outward[:, a], pairs.index) for a in range(outward.shape[-1])]
-    plane = -sum(o * n for o, n in zip(pairs.offset, own))
-    if facing:
-        close = close & (plane > 0)
-    normal_sum = jnp.stack([_mean_over(close, n) for n in own], axis=-1)
+    mean of their outward normals, the gap along it (2 l0 where none), and the
+    partners' mean velocity."""
+    normal_sum = jnp.stack(
+        [
+            _mean_over(close, take_rows(outward[:, a], pairs.index))
+            for a in range(outward.shape[-1])
+        ],
+        axis=-1,
+    )
     any_close = jnp.any(close, axis=1)
     ok = any_close & jnp.any(normal_sum != 0, axis=-1)
     length = safe_norm(normal_sum, ok)
     normal = jnp.where(ok[:, None], normal_sum / length[:, None], 0.0)
     along = -sum(o * normal[:, a, None] for a, o in enumerate(pairs.offset))
-    gap = jnp.min(jnp.where(close, jnp.maximum(along, plane), 2.0 * l0), axis=1)
+    gap = jnp.min(jnp.where(close, along, 2.0 * l0), axis=1)
     gap = jnp.where(ok, gap, 2.0 * l0)
-    partner = jnp.stack(
+    return normal, gap, _partner_velocity(close, pairs, velocity)
+
+
+def _partner_velocity(close, pairs, velocity):
+    return jnp.stack(
         [
             _mean_over(close, take_rows(velocity[:, a], pairs.index))
             for a in range(velocity.shape[-1])
         ],
         axis=-1,
     )
-    return normal, gap, partner
+
+
+# A wall partner faces a body particle where the particle lies within this angle
+# of the partner's (lattice) normal: cos 41 degrees, short of the 45 degrees of a
+# flat wall's diagonal neighbours and of an edge particle beside the particle.
+_FACING = 0.75
+
+
+def _wall_surface(close: Bool[Array, "n k"], pairs, outward, velocity, l0):
+    """The wall surface that the partners in `close` present to each body
+    particle for the contact push: a normal, the gap (2 l0 where none) and the
+    partners' mean velocity.
+
+    Each partner's outward normal is snapped to the nearest lattice direction
+    (the axes and diagonals). A partner faces the particle where the particle
+    lies within 41 degrees of that normal; its gap is then the particle's
+    distance from the partner's plane, otherwise (an edge or corner beside the
+    particle) their distance. The gap is the least over the partners; the normal
+    is the mean of the directions of those closer than l0 (facing: the
+    partner's normal; else from the partner to the particle) weighted by how
+    much closer, or, where none is, of the facing partners' normals.
+
+    # Choice: the gap along the mean normal of all partners took the recess a
+    # block rests in (a concave corner: diagonal mean normal, the floor partner
+    # l0 / sqrt(2) along it) and the lip of a scour hole beside a block (an edge
+    # particle level with the block's, its normal pointing away) for overlaps of
+    # 0.1-0.3 l0, and the push, stiff as 1/dt^2, lifted and spun a block resting
+    # in a recess (65-330 N/m semi-implicit, 4600 N/m explicit, against its 4.9
+    # N/m weight). A wall particle near a corner has a normal tilted by up to 14
+    # degrees (its neighbourhood holds the corner), hence the snapping. On a flat
+    # wall the plane distance is the height above it whatever the offset along
+    # it, as the mean normal's was (no lattice bumps while sliding); an edge is a
+    # point, whose distance is the pair's.
+    """
+    dim = outward.shape[-1]
+    snapped = _snap(outward)
+    own = [take_rows(snapped[:, a], pairs.index) for a in range(dim)]
+    distance = jnp.where(close, pairs.distance, 2.0 * l0)
+    plane = -sum(o * n for o, n in zip(pairs.offset, own))
+    facing = close & (plane > _FACING * distance)
+    gaps = jnp.where(facing, plane, distance)
+    away = [-o / distance for o in pairs.offset]  # from the partner to i
+    direction = [jnp.where(facing, n, u) for n, u in zip(own, away)]
+    depth = jnp.where(close, jnp.maximum(l0 - gaps, 0.0), 0.0)
+    pressed = jnp.stack([jnp.sum(depth * d, axis=1) for d in direction], axis=-1)
+    faced = jnp.stack(
+        [jnp.sum(jnp.where(facing, n, 0.0), axis=1) for n in own], axis=-1
+    )
+    normal_sum = jnp.where(jnp.any(depth > 0, axis=1)[:, None], pressed, faced)
+    ok = jnp.any(close, axis=1) & jnp.any(normal_sum != 0, axis=-1)
+    length = safe_norm(normal_sum, ok)
+    normal = jnp.where(ok[:, None], normal_sum / length[:, None], 0.0)
+    gap = jnp.where(ok, jnp.min(gaps, axis=1), 2.0 * l0)
+    return normal, gap, _partner_velocity(close, pairs, velocity)
+
+
+def _snap(normal: Float[Array, "n d"]) -> Float[Array, "n d"]:
+    """Each unit vector's nearest lattice direction (components in {-1, 0, 1},
+    normalised; zero stays zero)."""
+    dim = normal.shape[-1]
+    steps = np.array(
+        [v for v in itertools.product((-1, 0, 1), repeat=dim) if any(v)], float
+    )
+    steps /= np.linalg.norm(steps, axis=1, keepdims=True)
+    best = jnp.argmax(normal @ jnp.asarray(steps, normal.dtype).T, axis=-1)
+    nonzero = jnp.any(normal != 0, axis=-1, keepdims=True)
+    return jnp.where(nonzero, jnp.asarray(steps, normal.dtype)[best], 0.0)
 
 
 def _world(inertia: Float[Array, "b a a"], rotation, dim: int):

@@ -168,6 +168,12 @@ def flume(**overrides) -> Case:
     fluid, depth = fill(profile, length, h_in, l0, tail)
     free = _outside(fluid, blocks, l0) & bool(c["initial_fill"])
     fluid, depth = fluid[free], depth[free]
+    # The water between the blocks starts still: moving, it would be squeezed
+    # into their faces in the first step and throw them out.
+    between = (fluid[:, 0] > profile.apron_end) & (fluid[:, 0] < profile.protection_end)
+    speed = np.where(
+        between & (fluid[:, 1] < -c["step_height"]), 0.0, c["discharge"] / depth
+    )
     position = np.concatenate([fluid, blocks, inflow_pts, upstream, bed])
     kind = np.concatenate(
         [
@@ -210,7 +216,7 @@ def flume(**overrides) -> Case:
         params, InflowParams(velocity=np.asarray(u_in, params.dt.dtype))
     )
     velocity = np.zeros_like(position)
-    velocity[:n_fluid, 0] = float(c["discharge"]) / depth
+    velocity[:n_fluid, 0] = speed
     velocity[first_wall : first_wall + len(inflow_pts), 0] = u_in
     state = make_state(scene, position, kind, velocity=velocity)
     probes = (
