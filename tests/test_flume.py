@@ -54,6 +54,9 @@ def test_profile_has_the_pieces_where_the_settings_put_them():
     assert h(0.5) == pytest.approx(-0.01)  # reach, back at the apron's level
     assert h(0.65) == pytest.approx(-0.02)  # halfway down the transition
     assert h(0.8) == pytest.approx(-0.03)  # lowered bed: Delta H = 2 cm
+    # the hollows filled to their brims (where still water would stand)
+    filled = profile.filled(np.array([0.2, hole, 0.65, 0.8]))
+    np.testing.assert_allclose(filled, [-0.01, -0.01, -0.02, -0.03], atol=1e-12)
 
 
 def test_bed_is_lined_with_walls_and_the_water_and_blocks_lie_on_it():

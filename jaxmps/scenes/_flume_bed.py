@@ -29,6 +29,20 @@ class BedProfile:
         """z_b at `x` (not on a vertical face's own x)."""
         return np.interp(x, self.knots[:, 0], self.knots[:, 1])
 
+    def filled(self, x: np.ndarray) -> np.ndarray:
+        """The bed with its hollows filled to their brims (the blocks' recess, a
+        scour hole): min(highest bed upstream, highest bed downstream)."""
+        x = np.asarray(x, np.float64)
+        kx, kz = self.knots[:, 0], self.knots[:, 1]
+        here = self.height(x)
+        from_left = np.maximum.accumulate(kz)
+        from_right = np.maximum.accumulate(kz[::-1])[::-1]
+        last = np.clip(np.searchsorted(kx, x, side="right") - 1, 0, len(kx) - 1)
+        first = np.clip(np.searchsorted(kx, x, side="left"), 0, len(kx) - 1)
+        left = np.maximum(from_left[last], here)
+        right = np.maximum(from_right[first], here)
+        return np.minimum(left, right)
+
     def distance(self, points: np.ndarray) -> np.ndarray:
         """Each point's Euclidean distance to the polyline."""
         return _distance(points, self.knots)
@@ -205,10 +219,10 @@ def bed_particles(
 def fill(
     profile: BedProfile, length: float, depth: float, l0: float, level=None
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Lattice points of water `depth` deep over the bed (following it, and over
-    the blocks' recess from the apron's level), or up to the height `level`
-    where that is higher, on [0, length]; and each one's water depth. Points
-    inside the blocks are for the caller to remove."""
+    """Lattice points of water `depth` deep over the bed (following it, its
+    hollows filled: over the blocks' recess and a scour hole from their brims),
+    or up to the height `level` where that is higher, on [0, length]; and each
+    one's water depth. Points inside the blocks are for the caller to remove."""
     surface = profile.height(np.asarray([0.0])) + depth
     if level is not None:
         surface = np.maximum(surface, level)
@@ -218,8 +232,7 @@ def fill(
         l0,
     )
     bed = profile.height(grid[:, 0])
-    recess = (grid[:, 0] > profile.apron_end) & (grid[:, 0] < profile.protection_end)
-    top = np.where(recess, profile.height(profile.apron_end - 1e-9), bed) + depth
+    top = profile.filled(grid[:, 0]) + depth
     if level is not None:
         top = np.maximum(top, level)
     keep = (grid[:, 1] > bed) & (grid[:, 1] < top)
@@ -229,11 +242,12 @@ def fill(
 def stored_area(
     profile: BedProfile, length: float, depth: float, weir_level: float | None, l0
 ) -> float:
-    """The water area [m^2] over the bed when every column holds `depth`, or
-    stands up to `weir_level` where that is higher."""
+    """The water area [m^2] over the bed when every column holds `depth` over
+    the filled bed (`BedProfile.filled`), or stands up to `weir_level` where
+    that is higher."""
     x = (np.arange(int(round(length / l0))) + 0.5) * l0
     bed = profile.height(x)
-    surface = bed + depth
+    surface = profile.filled(x) + depth
     if weir_level is not None:
         surface = np.maximum(surface, weir_level)
     return float(np.sum(np.maximum(surface - bed, 0.0)) * l0)
