@@ -13,14 +13,16 @@ averages 11 snapshots at t = 20..30 s):
 - submerged L_e: where the jet reattaches, the first X at which the near-bed
   flow turns downstream; submerged L_r: where the surface velocity first
   reaches the cross-sectional mean q / h_t;
-- the regime: where the jet runs at X = 15 cm (the height of the largest mean
-  velocity over the bed, as a share of the depth): a surface jet is the
-  undular jump, a wall jet the submerged jet.
+- the regime: a surface roller (the surface flow turning upstream within
+  50 cm of the step) is the submerged jet, a surface jet over the bed the
+  undular jump; also where the jet runs at X = 15 cm (the height of the
+  largest mean velocity, as a share of the depth).
 
 Seed (5 mm): undular L_r = 37 cm; submerged L_r = 48, L_e = 18 cm; at 2.5 mm
 h_t = 15.5 / 13.0 cm [experiment 16.0 / 13.5].
 
-Run: python validation/step_flows.py [T=30]  (writes results/step_flows_cpu.{json,md})
+Run: python validation/step_flows.py [T=30]  (writes results/step_flows_cpu.{json,md});
+python validation/step_flows.py --remeasure measures the saved profiles again.
 """
 
 import json
@@ -93,42 +95,76 @@ def run(weir: float, t_end: float) -> dict:
             layer = np.rint(heights / L0).astype(int)
             mean = np.bincount(layer, speeds) / np.maximum(np.bincount(layer), 1)
             jet_height = float(np.argmax(mean) * L0 / max(heights.max(), L0))
-    near_bed, surface = np.asarray(near_bed), np.asarray(surface)
-    centre = 0.5 * (bins[:-1] + bins[1:])
-    reverse = near_bed < 0
-    # undular L_r: the reverse near-bed flow reaching from the step
-    first_forward = np.argmax(~reverse[1:]) + 1 if (~reverse[1:]).any() else len(reverse)
-    roller = float(centre[first_forward - 1] + 0.005) if reverse[:3].any() else 0.0
-    # submerged L_e: the near-bed flow turns downstream after the eddy
-    turned = np.nonzero(reverse[:-1] & ~reverse[1:])[0]
-    reattach = float(centre[turned[0] + 1]) if len(turned) else float("nan")
-    mean_u = Q / h_t
-    reached = np.nonzero(surface >= mean_u)[0]
-    surface_roller = float(centre[reached[0]]) if len(reached) else float("nan")
     return {
         "weir_cm": 100 * weir,
         "h_t_cm": round(100 * h_t, 2),
         "jet_height_share": round(jet_height, 3),
-        "regime": "undular (surface jet)" if jet_height > 0.5 else "submerged (wall jet)",
-        "bed_roller_L_r_cm": round(100 * roller, 1),
-        "reattachment_L_e_cm": round(100 * reattach, 1),
-        "surface_roller_L_r_cm": round(100 * surface_roller, 1),
         "near_bed_u": [round(v, 4) for v in near_bed[:80]],
         "surface_u": [round(v, 4) for v in surface[:80]],
         "result": str(out.result),
         "particles": int(np.asarray(out.saved.active)[-1].sum()),
         "steps": int(round(t_end / 2e-4)),
         "wall_s": round(wall, 1),
+        **measures(near_bed, surface, h_t),
+    }
+
+
+def _durable(u: np.ndarray, start: int = 0, run: int = 5) -> int:
+    """The first bin from `start` after which `u` stays >= 0 for `run` bins."""
+    for i in range(start, len(u) - run):
+        if np.all(u[i : i + run] >= 0):
+            return i
+    return len(u)
+
+
+def measures(near_bed, surface, h_t: float) -> dict:
+    """The regime and lengths from the mean velocities in 1 cm bins below the
+    step: a surface roller (the surface flow turning upstream within 50 cm) is
+    the submerged jet, a surface jet over it the undular jump; the bed roller
+    L_r, the reach of upstream near-bed flow, ends where the near-bed flow
+    turns downstream for good (5 bins), which for the submerged jet is the
+    reattachment L_e; its surface roller L_r ends where the surface velocity
+    first reaches the mean q / h_t after the roller began."""
+    near_bed, surface = np.asarray(near_bed), np.asarray(surface)
+    roller = np.nonzero(surface[:50] < 0)[0]
+    plunging = len(roller) > 0
+    ends = _durable(near_bed, 1)
+    reverse = near_bed[:ends] < 0
+    bed_roller = float(np.nonzero(reverse)[0].max() + 1) if reverse.any() else 0.0
+    surface_roller = float("nan")
+    if plunging:
+        back = np.nonzero(surface[roller[0] :] >= Q / h_t)[0]
+        if len(back):
+            surface_roller = float(roller[0] + back[0])
+    return {
+        "regime": "submerged jet (surface roller)"
+        if plunging
+        else "undular (surface jet)",
+        "bed_roller_L_r_cm": bed_roller,
+        "reattachment_L_e_cm": float(ends) if plunging else float("nan"),
+        "surface_roller_L_r_cm": surface_roller,
     }
 
 
 def main() -> None:
-    t_end = float(sys.argv[1]) if len(sys.argv) > 1 else 30.0
-    rows = {name: run(weir, t_end) for name, weir in CASES.items()}
-    info = machine_info()
     name = HERE / "results" / "step_flows_cpu"
+    if sys.argv[1:2] == ["--remeasure"]:  # the saved profiles, measured again
+        saved = json.loads(name.with_suffix(".json").read_text())
+        t_end, info, rows = saved["t_end"], saved["machine"], saved["rows"]
+        for r in rows.values():
+            r.update(measures(r["near_bed_u"], r["surface_u"], r["h_t_cm"] / 100))
+    else:
+        t_end = float(sys.argv[1]) if len(sys.argv) > 1 else 30.0
+        rows = {name: run(weir, t_end) for name, weir in CASES.items()}
+        info = machine_info()
+    write(name, t_end, info, rows)
+
+
+def write(name, t_end: float, info: dict, rows: dict) -> None:
     name.with_suffix(".json").write_text(
-        json.dumps({"machine": info, "t_end": t_end, "rows": rows, "seed": SEED}, indent=2)
+        json.dumps(
+            {"machine": info, "t_end": t_end, "rows": rows, "seed": SEED}, indent=2
+        )
     )
     lines = [
         "# Step flows: the undular jump and the submerged jet (seed 002 Ch. 4, V1-V3)",
@@ -136,16 +172,16 @@ def main() -> None:
         f"l0 = {L0} m, explicit E-MPS (c = 10 m/s, dt = 2e-4 s), {t_end} s, means "
         f"over {t_end / 2}-{t_end} s. Machine: {info.get('cpu_model', '?')}.",
         "",
-        "| case | weir [cm] | h_t [cm] (seed 2.5 mm, exp.) | regime (jet height / "
-        "depth at X = 15 cm) | bed roller L_r [cm] | L_e [cm] | surface L_r [cm] | "
+        "| case | weir [cm] | h_t [cm] (seed 2.5 mm, exp.) | regime | jet height / "
+        "depth at X = 15 cm | bed roller L_r [cm] | L_e [cm] | surface L_r [cm] | "
         "particles | wall [s] |",
-        "|---|---|---|---|---|---|---|---|---|",
+        "|---|---|---|---|---|---|---|---|---|---|",
     ]
     for case, r in rows.items():
         s = SEED[case]
         lines.append(
             f"| {case} | {r['weir_cm']:g} | {r['h_t_cm']} ({s['h_t']}, "
-            f"{s['experiment_h_t']}) | {r['regime']} ({r['jet_height_share']}) | "
+            f"{s['experiment_h_t']}) | {r['regime']} | {r['jet_height_share']} | "
             f"{r['bed_roller_L_r_cm']} | {r['reattachment_L_e_cm']} | "
             f"{r['surface_roller_L_r_cm']} | {r['particles']} | {r['wall_s']} |"
         )
