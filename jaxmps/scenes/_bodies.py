@@ -392,6 +392,19 @@ def coulomb(c) -> Coulomb:
     )
 
 
+def block_probes(count: int) -> tuple:
+    """`block{k}_x`, `block{k}_y`, `block{k}_angle` for rigid bodies 0..count-1."""
+    return tuple(
+        probe
+        for k in range(count)
+        for probe in (
+            BodyValue(f"block{k}_x", k, "centre", 0),
+            BodyValue(f"block{k}_y", k, "centre", 1),
+            BodyValue(f"block{k}_angle", k, "angle"),
+        )
+    )
+
+
 def _tilted_gravity(dim: int, g: float, degrees: float) -> np.ndarray:
     a = math.radians(degrees)
     out = np.zeros(dim)
@@ -628,15 +641,7 @@ def block_stack(**overrides) -> Case:
     params = eqx.tree_at(lambda p: p.gravity, params, tilted)
     if c["settle"] > 0:
         state = _spun_up(scene, params, state, c["settle"], tilted)
-    probes = tuple(
-        probe
-        for k in range(len(blocks))
-        for probe in (
-            BodyValue(f"block{k}_x", k, "centre", 0),
-            BodyValue(f"block{k}_y", k, "centre", 1),
-            BodyValue(f"block{k}_angle", k, "angle"),
-        )
-    )
+    probes = block_probes(len(blocks))
     config = {
         **c,
         **sizes,

@@ -14,7 +14,7 @@ from .._scene import Scene
 from .._state import State
 from .._types import Kind
 from ..fluid import Inflow, InflowParams, Outflow
-from ._bodies import coulomb
+from ._bodies import block_probes, coulomb
 from ._case import Case
 from ._common import boundary_layers, case_params, case_scene, resolve, whole
 from ._flume_bed import (
@@ -25,7 +25,7 @@ from ._flume_bed import (
     optional,
     stored_area,
 )
-from ._probes import AbstractProbe, BodyValue, WaterLevel
+from ._probes import AbstractProbe, WaterLevel
 
 DEFAULTS = {
     "discharge": 0.04,  # unit discharge q [m^2/s] (seed 002 Ch. 4)
@@ -149,31 +149,13 @@ def flume(**overrides) -> Case:
     profile = bed_profile(c, length, -(layers + 1) * l0)
     end = profile.knots[-1, 1]
 
-    # Inflow boundary: a pressure layer at x = -l0/2 and dummy layers behind it.
-    inflow_pts, inflow_kind = _column(0, rows, layers, l0)
-    # A fixed wall above the inflow column, so that a level raised by a tail weir
-    # (or a jump) cannot spill back over the inflow boundary.
     level, top = _heights(c, h_in, weir, end, length)
-    # Choice: the wall rises to the top of the domain (a head-box wall), so that
-    # splash thrown back upstream (off a weir or a jump) cannot leave the domain
-    # over the inflow end; it falls back into the channel.
-    above = int(round(max(top, level + 4 * l0) / l0)) - rows
-    upstream, upstream_kind = _column(rows, above, layers, l0)
-    # The bed runs on under the weir: a weir standing on the bed's end would leave
-    # a gap under its bottom row through which the bottom fluid row leaks out.
-    bed_end = length + (layers * l0 if weir > 0 else 0.0)
-    bed, bed_kind = bed_particles(profile, bed_end, weir, layers, l0)
+    inflow_pts, inflow_kind, upstream, upstream_kind, bed, bed_kind = _walls(
+        c, profile, rows, max(top, level + 4 * l0), weir, length
+    )
     blocks, body = _blocks(c, profile, l0)
     tail = None if c["tail_depth"] is None else end + whole(c["tail_depth"], l0)
-    fluid, depth = fill(profile, length, h_in, l0, tail)
-    free = _outside(fluid, blocks, l0) & bool(c["initial_fill"])
-    fluid, depth = fluid[free], depth[free]
-    # The water between the blocks starts still: moving, it would be squeezed
-    # into their faces in the first step and throw them out.
-    between = (fluid[:, 0] > profile.apron_end) & (fluid[:, 0] < profile.protection_end)
-    speed = np.where(
-        between & (fluid[:, 1] < -c["step_height"]), 0.0, c["discharge"] / depth
-    )
+    fluid, speed = _water(c, profile, length, h_in, tail, blocks)
     position = np.concatenate([fluid, blocks, inflow_pts, upstream, bed])
     kind = np.concatenate(
         [
@@ -232,15 +214,7 @@ def flume(**overrides) -> Case:
     )
     if len(blocks):
         scene, params, state = _add_blocks(c, scene, params, state, body, len(fluid))
-        probes += tuple(
-            probe
-            for k in range(int(c["block_rows"]))
-            for probe in (
-                BodyValue(f"block{k}_x", k, "centre", 0),
-                BodyValue(f"block{k}_y", k, "centre", 1),
-                BodyValue(f"block{k}_angle", k, "angle"),
-            )
-        )
+        probes += block_probes(int(c["block_rows"]))
     config = {
         **c,
         "inflow_depth": h_in,
@@ -251,6 +225,26 @@ def flume(**overrides) -> Case:
         "protection_end": profile.protection_end,
     }
     return Case("flume", scene, params, state, probes, float(c["t_end"]), config)
+
+
+def _walls(c: dict, profile, rows: int, top: float, weir: float, length: float):
+    """The inflow's boundary columns, the head-box wall above them up to `top`,
+    and the bed with the tail weir, each with its kinds."""
+    l0 = c["spacing"]
+    layers = boundary_layers(c)
+    # Inflow boundary: a pressure layer at x = -l0/2 and dummy layers behind it.
+    inflow, inflow_kind = _column(0, rows, layers, l0)
+    # A fixed wall above the inflow column, so that a level raised by a tail weir
+    # (or a jump) cannot spill back over the inflow boundary.
+    # Choice: the wall rises to the top of the domain (a head-box wall), so that
+    # splash thrown back upstream (off a weir or a jump) cannot leave the domain
+    # over the inflow end; it falls back into the channel.
+    upstream, upstream_kind = _column(rows, int(round(top / l0)) - rows, layers, l0)
+    # The bed runs on under the weir: a weir standing on the bed's end would leave
+    # a gap under its bottom row through which the bottom fluid row leaks out.
+    bed_end = length + (layers * l0 if weir > 0 else 0.0)
+    bed, bed_kind = bed_particles(profile, bed_end, weir, layers, l0)
+    return inflow, inflow_kind, upstream, upstream_kind, bed, bed_kind
 
 
 def _rounded(c: dict, l0: float) -> dict:
@@ -264,6 +258,19 @@ def _rounded(c: dict, l0: float) -> dict:
         out["block_length"] = whole(c["block_length"], l0)
         out["block_height"] = whole(c["block_height"], l0)
     return {**c, **out}
+
+
+def _water(c: dict, profile, length: float, h_in: float, tail, blocks):
+    """The initial water (none without `initial_fill`) and its speed: q / depth,
+    but still between the blocks (moving, it would be squeezed into their faces
+    in the first step and throw them out)."""
+    l0 = c["spacing"]
+    fluid, depth = fill(profile, length, h_in, l0, tail)
+    free = _outside(fluid, blocks, l0) & bool(c["initial_fill"])
+    fluid, depth = fluid[free], depth[free]
+    between = (fluid[:, 0] > profile.apron_end) & (fluid[:, 0] < profile.protection_end)
+    between &= fluid[:, 1] < -c["step_height"]
+    return fluid, np.where(between, 0.0, c["discharge"] / depth)
 
 
 def _outside(points: np.ndarray, solids: np.ndarray, l0: float) -> np.ndarray:
