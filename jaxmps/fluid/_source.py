@@ -154,14 +154,20 @@ class HigherOrderSource(AbstractSource):
     optional error-compensating term (ECS).
 
     Attributes:
-        gamma: relaxation coefficient of the number-density term (1e-3 in seed 001,
-            run there at dt = 2.5e-4 s). It is a relaxation per step, so at larger
-            dt it restores the density more slowly per second. Measured with the
-            full scheme at l0 = 1 cm, dt = 1 ms, 2 s (validation/conservation.py):
-            gamma = 1e-3 lets the fluid compress by 3 % (hydrostatic) to 7 %
-            (standing wave) with the level sinking 4-7 mm; 0.01 gives 0.15-1 %;
-            0.05 keeps it within 0.1 % (and quarters the bottom-pressure noise) but
-            moves the standing-wave period from +0.6 % to -1.5 %.
+        gamma: relaxation coefficient of the number-density term, a fraction of
+            the density error restored per (reference) step. Seed 001 prints 1e-3,
+            run there at dt = 2.5e-4 s; our default steps are 4-8 times longer
+            (the Courant rule), which makes the same gamma 4-8 times weaker per
+            second. Measured with the full scheme (validation/conservation.py, l0
+            = 1 cm, dt = 1 ms, 2 s): gamma = 1e-3 lets the fluid compress by 3 %
+            (hydrostatic) to 7 % (standing wave) with the level sinking 4-7 mm;
+            0.01 gives 0.15-1 %; 0.05 keeps it within 0.1 %. In still water at
+            the default steps (validation/still_water_noise.py: four tanks at 2
+            cm, three at 1 cm) 1e-3 left the bottom pressure up to 6 times
+            noisier than the `standard` preset in the small tanks; 0.02 (the
+            default) is quieter than `standard` in every one (0.04-0.82 of its
+            noise), and the standing wave's period stays within 2 % (-1.1 %;
+            0.03 took it to -2.5 %).
         compensation: `DynamicCompensation()` (ECS) or None.
         normalised: s = -d n0 / sum_lattice w'(r) r, which makes the first term
             rho0/dt times an exact divergence of linear fields on the reference
@@ -169,7 +175,7 @@ class HigherOrderSource(AbstractSource):
             `HigherOrderLaplacian`).
     """
 
-    gamma: float = 1e-3
+    gamma: float = 0.02
     compensation: AbstractCompensation | None = DynamicCompensation()
     normalised: bool = False
 
