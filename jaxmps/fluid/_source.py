@@ -161,7 +161,8 @@ class HigherOrderSource(AbstractSource):
             second. Measured with the full scheme (validation/conservation.py, l0
             = 1 cm, dt = 1 ms, 2 s): gamma = 1e-3 lets the fluid compress by 3 %
             (hydrostatic) to 7 % (standing wave) with the level sinking 4-7 mm;
-            0.01 gives 0.15-1 %; 0.05 keeps it within 0.1 %. In still water at
+            0.01 gives 0.15-1 %; 0.02 (the default) within 0.06 % and 0.4 mm;
+            0.05 within 0.1 %. In still water at
             the default steps (validation/still_water_noise.py: four tanks at 2
             cm, three at 1 cm) 1e-3 left the bottom pressure up to 6 times
             noisier than the `standard` preset in the small tanks; 0.02 (the
