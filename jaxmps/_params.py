@@ -224,7 +224,10 @@ class Params(eqx.Module):
         dt: time step [s].
         beta: free-surface threshold; a particle with n* < beta * n0 is on the surface.
         sound_speed: artificial speed of sound c [m/s] of the explicit (E-MPS) equation
-            of state; unused by the semi-implicit solver.
+            of state; unused by the semi-implicit solver. The water at depth H is
+            compressed by g H / c^2; a floating body (whose lattice is not) floats
+            too high where that is large: the floating scenes take ten times
+            sqrt(2 g H), 0.5 % (`scenes.floating_box`).
         inflow: inflow parameters, present exactly when the Scene has an inflow.
         motion: parameters of the Scene's prescribed wall motion (`HarmonicParams`
             or `StrokeParams`), present exactly when it has one.

@@ -18,6 +18,7 @@ from ._common import (
     case_params,
     case_scene,
     discretisation,
+    floating_sound_speed,
     resolve,
     velocity_scale,
     whole,
@@ -117,6 +118,7 @@ FLOATING_BOX = {
     "gyration": None,
     "initial_draft": None,
     "body_pressure": "fluid",
+    "sound_speed": None,  # derived from the depth (`floating_sound_speed`)
     "tank_length": 0.8,
     "tank_width": 0.2,  # 3-D only
     "depth": 0.2,
@@ -258,6 +260,7 @@ def floating_box(**overrides) -> Case:
         )
     bw, bh = whole(c["box_width"], l0), whole(c["box_height"], l0)
     length, depth = whole(c["tank_length"], l0), whole(c["depth"], l0)
+    c = {**c, "sound_speed": floating_sound_speed(c, depth)}
     if bw >= length:
         raise ValueError("box_width must be below tank_length.")
     across = [whole(c["tank_width"], l0)] if dim == 3 else []
