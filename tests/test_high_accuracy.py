@@ -406,3 +406,9 @@ def test_high_accuracy_is_quieter_than_standard_in_still_water(width, depth, spa
     error, noise = _still_water_noise(width, depth, spacing, "high_accuracy")
     assert noise <= standard_noise, f"{noise:.2%} vs standard {standard_noise:.2%}"
     assert abs(error) < 0.02, f"mean {error:+.2%}"
+
+
+@pytest.mark.parametrize("gamma", [-0.1, 1.0, float("nan")])
+def test_high_accuracy_refuses_a_density_relaxation_outside_0_1(gamma):
+    with pytest.raises(ValueError, match="gamma"):
+        jaxmps.schemes.high_accuracy(gamma=gamma)

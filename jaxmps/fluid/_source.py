@@ -180,6 +180,14 @@ class HigherOrderSource(AbstractSource):
     compensation: AbstractCompensation | None = DynamicCompensation()
     normalised: bool = False
 
+    def __check_init__(self):
+        if not 0 <= self.gamma < 1:
+            raise ValueError(
+                f"HigherOrderSource.gamma must lie in [0, 1) (a fraction of the "
+                f"density error restored per step), got {self.gamma}; "
+                "`schemes.high_accuracy(gamma=...)` sets it."
+            )
+
     def scale(self, disc: Discretisation) -> float:
         if not self.normalised:
             return 1.0
