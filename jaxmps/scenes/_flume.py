@@ -157,39 +157,21 @@ def flume(**overrides) -> Case:
     tail = None if c["tail_depth"] is None else end + whole(c["tail_depth"], l0)
     fluid, speed = _water(c, profile, length, h_in, tail, blocks)
     position = np.concatenate([fluid, blocks, inflow_pts, upstream, bed])
-    kind = np.concatenate(
-        [
-            np.full(len(fluid) + len(blocks), int(Kind.FLUID)),
-            inflow_kind,
-            upstream_kind,
-            bed_kind,
-        ]
-    ).astype(np.int32)
+    kind = _kinds(len(fluid) + len(blocks), inflow_kind, upstream_kind, bed_kind)
     n_fluid, first_wall = len(fluid), len(fluid) + len(blocks)
 
     held = [end + level] if weir else []
-    held += [] if tail is None else [tail]
-    area = stored_area(profile, length, h_in, max(held) if held else None, l0)
+    held = max(held + ([] if tail is None else [tail]), default=None)
+    area = stored_area(profile, length, h_in, held, l0)
     pool = _pool(c, u_in, area, rows, n_fluid)
-    capacity = len(position) + pool
-    lower = np.array(
-        [-(layers + 3) * l0, profile.lowest - (layers + 2) * l0 - 0.2 * length]
-    )
-    upper = np.array([length + (layers + 3) * l0, top])
-    scene = case_scene(c, position, (lower, upper), kind, capacity=capacity)
-    # Choice: behind a weir the outflow plane is the weir's downstream face: water
-    # that spills over the crest and runs down that face would otherwise fall
-    # between the face and a plane further out and leave the domain through its
-    # bottom.
-    outflow_at = length + layers * l0 if weir > 0 else length + l0
-    scene = _with_boundaries(
-        scene,
-        Inflow(
-            pressure_layer=tuple(range(first_wall, first_wall + rows)),
-            boundary=tuple(range(first_wall, first_wall + len(inflow_pts))),
-            origin=-0.5 * l0,
-        ),
-        Outflow(position=outflow_at),
+    scene = _scene(
+        c,
+        profile,
+        position,
+        kind,
+        len(position) + pool,
+        (top, length, weir),
+        (first_wall, rows, len(inflow_pts)),
     )
     params = case_params(
         c, 2, u_in + math.sqrt(c["gravity"] * (h_in + c["step_height"]))
@@ -197,21 +179,10 @@ def flume(**overrides) -> Case:
     params = _with_inflow(
         params, InflowParams(velocity=np.asarray(u_in, params.dt.dtype))
     )
-    velocity = np.zeros_like(position)
-    velocity[:n_fluid, 0] = speed
-    velocity[first_wall : first_wall + len(inflow_pts), 0] = u_in
+    inflow_slots = slice(first_wall, first_wall + len(inflow_pts))
+    velocity = _velocities(position, n_fluid, speed, inflow_slots, u_in)
     state = make_state(scene, position, kind, velocity=velocity)
-    probes = (
-        FluidCount("fluid_count"),
-        *(
-            WaterLevel(name, at * length, float(profile.height(at * length)), l0)
-            for name, at in (
-                ("level_upstream", 0.25),
-                ("level_middle", 0.5),
-                ("level_downstream", 0.9),
-            )
-        ),
-    )
+    probes = _level_probes(profile, length, l0)
     if len(blocks):
         scene, params, state = _add_blocks(c, scene, params, state, body, len(fluid))
         probes += block_probes(int(c["block_rows"]))
@@ -225,6 +196,65 @@ def flume(**overrides) -> Case:
         "protection_end": profile.protection_end,
     }
     return Case("flume", scene, params, state, probes, float(c["t_end"]), config)
+
+
+def _velocities(position, n_fluid: int, speed, inflow: slice, u_in: float):
+    """The initial velocities: the water's `speed` along x, the inflow's walls
+    moving at `u_in`, the rest at rest."""
+    velocity = np.zeros_like(position)
+    velocity[:n_fluid, 0] = speed
+    velocity[inflow, 0] = u_in
+    return velocity
+
+
+def _kinds(n_moving: int, *walls) -> np.ndarray:
+    """Kinds in the flume's order: its water and blocks (fluid until the blocks
+    are made rigid), then the wall groups."""
+    return np.concatenate([np.full(n_moving, int(Kind.FLUID)), *walls]).astype(np.int32)
+
+
+def _scene(c: dict, profile, position, kind, capacity: int, extent, inflow):
+    """The flume's Scene: a domain from the inflow's dummies to beyond the
+    downstream end and below the lowest bed, the inflow (`inflow`: the index of
+    its first wall particle, its rows, its particle count) and the outflow."""
+    top, length, weir = extent
+    first_wall, rows, n_inflow = inflow
+    l0, layers = c["spacing"], boundary_layers(c)
+    lower = np.array(
+        [-(layers + 3) * l0, profile.lowest - (layers + 2) * l0 - 0.2 * length]
+    )
+    upper = np.array([length + (layers + 3) * l0, top])
+    scene = case_scene(c, position, (lower, upper), kind, capacity=capacity)
+    # Choice: behind a weir the outflow plane is the weir's downstream face: water
+    # that spills over the crest and runs down that face would otherwise fall
+    # between the face and a plane further out and leave the domain through its
+    # bottom.
+    outflow_at = length + layers * l0 if weir > 0 else length + l0
+    return _with_boundaries(
+        scene,
+        Inflow(
+            pressure_layer=tuple(range(first_wall, first_wall + rows)),
+            boundary=tuple(range(first_wall, first_wall + n_inflow)),
+            origin=-0.5 * l0,
+        ),
+        Outflow(position=outflow_at),
+    )
+
+
+def _level_probes(profile, length: float, l0: float) -> tuple:
+    """The fluid count and the depths over the local bed at 0.25, 0.5 and 0.9 of
+    the bed."""
+    return (
+        FluidCount("fluid_count"),
+        *(
+            WaterLevel(name, at * length, float(profile.height(at * length)), l0)
+            for name, at in (
+                ("level_upstream", 0.25),
+                ("level_middle", 0.5),
+                ("level_downstream", 0.9),
+            )
+        ),
+    )
 
 
 def _walls(c: dict, profile, rows: int, top: float, weir: float, length: float):
