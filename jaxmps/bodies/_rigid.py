@@ -2,6 +2,7 @@
 seed 002 §4): the passively moving solid of Koshizuka et al."""
 
 import dataclasses
+import functools
 import itertools
 from collections.abc import Callable
 from typing import ClassVar
@@ -472,39 +473,17 @@ class RigidBodies(AbstractBodyModel):
             )
         )
         share = jnp.where(member, (mass / jnp.maximum(count, 1.0))[body], 0.0)
-        kappa, zeta = self.contact_stiffness, self.contact_damping
-
-        def magnitude(m_c, depth, v_n):
-            spring = kappa * m_c / dt**2 * depth
-            return jnp.maximum(spring - 2 * zeta * jnp.sqrt(kappa) * m_c / dt * v_n, 0)
-
+        magnitude = functools.partial(
+            _contact_magnitude, self.contact_stiffness, self.contact_damping, dt
+        )
         v_n = jnp.sum((velocity - v_wall) * normal, axis=-1)
         push = magnitude(share, l0 - gap, v_n)
         force = jnp.where((gap < l0)[:, None], push[:, None] * normal, 0.0)
         if self.count < 2:
             zero = jnp.zeros_like(force)
             return force, zero, Exchange(zero, jnp.zeros_like(rot.cross(zero, zero)))
-        theirs = take_rows(share, pairs.index)
-        m_c = share[:, None] * theirs / jnp.maximum(share[:, None] + theirs, 1e-300)
-        distance = jnp.where(pressed, pairs.distance, l0)
-        v_n = (
-            -sum(
-                (velocity[:, a, None] - take_rows(velocity[:, a], pairs.index)) * o
-                for a, o in enumerate(pairs.offset)
-            )
-            / distance
-        )
-        push = jnp.where(pressed, magnitude(m_c, l0 - distance, v_n), 0.0)
-        pair_force = [-push / distance * o for o in pairs.offset]  # on i, (n, k)
-        own = jnp.stack([jnp.sum(f, axis=1) for f in pair_force], axis=-1)
-        back = jax.ops.segment_sum(
-            -jnp.stack(pair_force, axis=-1).reshape(-1, disc.dim),
-            pairs.index.reshape(-1),
-            own.shape[0] + 1,
-        )[: own.shape[0]]
-        # central pair forces: no moment about the pair's middle to add
-        exchange = Exchange(
-            total=own + back, moment=jnp.zeros_like(rot.cross(own, own))
+        own, exchange = _push_between_bodies(
+            pressed, pairs, share, velocity, l0, magnitude
         )
         return force, own, exchange
 
@@ -763,6 +742,39 @@ def _partner_velocity(close, pairs, velocity):
 # of the partner's (lattice) normal: cos 41 degrees, short of the 45 degrees of a
 # flat wall's diagonal neighbours and of an edge particle beside the particle.
 _FACING = 0.75
+
+
+def _contact_magnitude(kappa, zeta, dt, m_c, depth, v_n):
+    """The contact's spring-dashpot force magnitude [N], never pulling: stiffness
+    kappa m_c / dt^2, damping 2 zeta sqrt(kappa) m_c / dt (see `RigidBodies._push`)."""
+    spring = kappa * m_c / dt**2 * depth
+    return jnp.maximum(spring - 2 * zeta * jnp.sqrt(kappa) * m_c / dt * v_n, 0)
+
+
+def _push_between_bodies(pressed, pairs, share, velocity, l0, magnitude):
+    """The contact force between bodies on the particles of the lower-index body
+    of each `pressed` pair (central, along the pair, at the pair's reduced
+    contact mass), and that exchange with the partners' reactions."""
+    theirs = take_rows(share, pairs.index)
+    m_c = share[:, None] * theirs / jnp.maximum(share[:, None] + theirs, 1e-300)
+    distance = jnp.where(pressed, pairs.distance, l0)
+    v_n = (
+        -sum(
+            (velocity[:, a, None] - take_rows(velocity[:, a], pairs.index)) * o
+            for a, o in enumerate(pairs.offset)
+        )
+        / distance
+    )
+    push = jnp.where(pressed, magnitude(m_c, l0 - distance, v_n), 0.0)
+    pair_force = [-push / distance * o for o in pairs.offset]  # on i, (n, k)
+    own = jnp.stack([jnp.sum(f, axis=1) for f in pair_force], axis=-1)
+    back = jax.ops.segment_sum(
+        -jnp.stack(pair_force, axis=-1).reshape(-1, velocity.shape[-1]),
+        pairs.index.reshape(-1),
+        own.shape[0] + 1,
+    )[: own.shape[0]]
+    # central pair forces: no moment about the pair's middle to add
+    return own, Exchange(total=own + back, moment=jnp.zeros_like(rot.cross(own, own)))
 
 
 def _wall_surface(close: Bool[Array, "n k"], pairs, outward, velocity, l0):
