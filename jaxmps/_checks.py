@@ -31,6 +31,7 @@ def check_compatible(scene: Scene, params: Params, state: State) -> None:
         raise ValueError(
             "Scene.inflow and Params.inflow must both be set or both be None."
         )
+    _check_inflow_depth(scene, params, state)
     if (scene.motion is None) != (params.motion is None):
         raise ValueError(
             "Scene.motion and Params.motion must both be set or both be None."
@@ -40,6 +41,24 @@ def check_compatible(scene: Scene, params: Params, state: State) -> None:
     if scene.time_step is None:
         _check_viscous_limit(scene, params)
     _check_finite(state)
+
+
+def _check_inflow_depth(scene: Scene, params: Params, state: State) -> None:
+    """A prescribed inflow depth fits in the inflow boundary's pressure layer."""
+    if scene.inflow is None or params.inflow.depth is None:
+        return
+    if not (is_concrete(params.inflow.depth) and is_concrete(state.position)):
+        return
+    up = scene.dim - 1
+    heights = np.asarray(state.position)[..., list(scene.inflow.pressure_layer), up]
+    height = float(np.max(heights) - np.min(heights)) + scene.spacing
+    deepest = float(np.max(np.asarray(params.inflow.depth)))
+    if deepest > height * (1 + 1e-9):
+        raise ValueError(
+            f"Params.inflow.depth reaches {deepest:.4g} m but the inflow boundary is "
+            f"{height:.4g} m high; lower the prescribed depth (the wave height) or "
+            "build a taller inflow boundary."
+        )
 
 
 def _check_porous(scene: Scene, params: Params) -> None:

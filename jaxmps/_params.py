@@ -76,14 +76,69 @@ def check_values(params, where: str = "") -> None:
     _check_fields(params, "", where, nested=True)
 
 
+def _optional_array(value):
+    return None if value is None else jnp.asarray(value)
+
+
 class InflowParams(eqx.Module):
-    """Inflow parameters (differentiable).
+    """Inflow parameters (differentiable): a constant inflow, or a prescribed time
+    series (a tide, a long wave, a tsunami at its gauge) linearly interpolated
+    between `times` and held constant outside them.
 
     Attributes:
-        velocity: inflow speed along +x [m/s]; unit discharge q = velocity x depth.
+        velocity: the boundary's speed along the inflow direction [m/s]; scalar,
+            or one value per entry of `times`. Negative values draw water out of
+            the domain through the boundary (Aida's outflow rule).
+        times: sample times of the series [s], strictly increasing; None for a
+            constant inflow.
+        depth: the water depth the boundary feeds, over the bottom of its pressure
+            layer [m]: a spawned column holds the layer's particles whose centres
+            lie below it (a prescribed surface elevation). Scalar, or one value per
+            entry of `times`; None for the layer's full height.
+    Unit discharge q = velocity x depth.
     """
 
-    velocity: Float[Array, ""] = eqx.field(converter=jnp.asarray)
+    velocity: Float[Array, "*m"] = eqx.field(converter=jnp.asarray)
+    times: Float[Array, " m"] | None = eqx.field(
+        default=None, converter=_optional_array
+    )
+    depth: Float[Array, "*m"] | None = eqx.field(
+        default=None, converter=_optional_array
+    )
+
+    def __check_init__(self):
+        for name in ("velocity", "depth"):
+            value = getattr(self, name)
+            if self.times is None or value is None:
+                continue
+            if tuple(value.shape) != tuple(self.times.shape):
+                raise ValueError(
+                    f"InflowParams.{name} has shape {tuple(value.shape)}; give one "
+                    f"value per entry of `times`, shape {tuple(self.times.shape)}."
+                )
+        if self.times is not None and is_concrete(self.times):
+            times = np.asarray(self.times, dtype=float)
+            if times.ndim != 1 or times.size < 2 or not np.all(np.diff(times) > 0):
+                raise ValueError(
+                    "InflowParams.times must hold at least two strictly increasing "
+                    f"times, got {times.tolist()}."
+                )
+        if self.depth is not None and is_concrete(self.depth):
+            if not np.all(np.asarray(self.depth, dtype=float) >= 0):
+                raise ValueError(
+                    "InflowParams.depth must be >= 0 (a depth over the bottom of the "
+                    "inflow boundary, not a surface level)."
+                )
+
+    def at(
+        self, time: Float[Array, ""]
+    ) -> tuple[Float[Array, ""], Float[Array, ""] | None]:
+        """(velocity, depth) at `time`; depth is None when not prescribed."""
+        if self.times is None:
+            return self.velocity, self.depth
+        velocity = jnp.interp(time, self.times, self.velocity)
+        depth = None if self.depth is None else jnp.interp(time, self.times, self.depth)
+        return velocity, depth
 
 
 class HarmonicParams(eqx.Module):
@@ -108,10 +163,6 @@ class StrokeParams(eqx.Module):
 
     times: Float[Array, " m"] = eqx.field(converter=jnp.asarray)
     stroke: Float[Array, " m"] = eqx.field(converter=jnp.asarray)
-
-
-def _optional_array(value):
-    return None if value is None else jnp.asarray(value)
 
 
 class RigidParams(eqx.Module):

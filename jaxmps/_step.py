@@ -178,7 +178,12 @@ def _boundaries(
         state = fluid.move_walls(scene.motion, params.motion, params.dt, state)
     if scene.inflow is not None:
         state, pool_short = fluid.apply_inflow(
-            scene.discretisation, scene.inflow, params.inflow, params.dt, state
+            scene.discretisation,
+            scene.inflow,
+            params.inflow,
+            scene.grid,
+            params.dt,
+            state,
         )
     return state, pool_short
 

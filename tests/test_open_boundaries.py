@@ -1,5 +1,6 @@
 """Inflow/outflow on the fixed-capacity pool (seed 000 §2.11, seed 002 §2.8, §3)."""
 
+import equinox as eqx
 import numpy as np
 import pytest
 
@@ -93,3 +94,154 @@ def test_tail_weir_holds_water_above_its_crest():
     count = np.asarray(tr.saved["fluid_count"])
     assert count[-1] > count[0]  # storage grows behind the weir
     assert tr.result == jaxmps.Result.successful
+
+
+# --- The inflow boundary on its own (kinematics: what it spawns and withdraws) ---
+
+
+def _kinematic_inflow(dim, axis, direction, params, t_end, dt, spacing=0.02):
+    """Advance a lone inflow boundary (no fluid solve) from t = 0 to `t_end`; return
+    the fluid count after each step and the boundary's cross-section area."""
+    import jax
+    import jax.numpy as jnp
+
+    cross = np.zeros(dim)
+    top = np.full(dim, 0.1)  # a 0.1 m (x 0.1 m) face of 5 (x 5) particles
+    points, kinds, inflow = jaxmps.fluid.inflow_boundary(
+        0.3, cross, top, spacing, axis=axis, direction=direction
+    )
+    lower, upper = np.full(dim, -0.5), np.full(dim, 1.0)
+    scene = jaxmps.make_scene(
+        points, spacing, (lower, upper), capacity=len(points) + 4000
+    )
+    state = jaxmps.make_state(scene, points, kinds)
+    params = eqx.tree_at(
+        lambda p: p.inflow,
+        jaxmps.make_params(dim, dt=dt),
+        params,
+        is_leaf=lambda x: x is None,
+    )
+    width = 0.1 ** (dim - 2)  # per metre in 2-D
+
+    def one(state, _):
+        new, short = jaxmps.fluid.apply_inflow(
+            scene.discretisation, inflow, params.inflow, scene.grid, params.dt, state
+        )
+        new = eqx.tree_at(lambda s: s.time, new, state.time + params.dt)
+        fluid = jnp.sum(new.active & (new.kind == int(jaxmps.Kind.FLUID)))
+        return new, (fluid, short)
+
+    steps = round(t_end / dt)
+    state, (count, short) = jax.jit(lambda s: jax.lax.scan(one, s, None, steps))(state)
+    assert not bool(np.any(short))
+    return state, np.asarray(count), width, inflow
+
+
+@pytest.mark.parametrize(
+    ("dim", "axis", "direction"), [(2, 0, 1), (3, 0, -1), (3, 1, 1)]
+)
+def test_prescribed_series_inflow_volume_matches_discharge(dim, axis, direction):
+    """A tabulated velocity and depth (a long wave rising, holding and falling) fed
+    through a boundary facing any way, in 2-D and 3-D: the volume that entered
+    equals the integral of velocity x depth x width within 2 % (it is sampled at
+    whole columns and rows of l0 = 2 cm)."""
+    times = np.array([0.0, 0.3, 0.6, 1.0])
+    velocity = np.array([0.2, 1.0, 1.0, 0.3])
+    depth = np.array([0.03, 0.1, 0.1, 0.05])
+    series = jaxmps.fluid.InflowParams(velocity=velocity, times=times, depth=depth)
+    dt = 1e-3
+    if axis == dim - 1:
+        pytest.skip("the vertical axis has no depth")
+    state, count, width, inflow = _kinematic_inflow(
+        dim, axis, direction, series, 1.0, dt
+    )
+    t = np.linspace(0.0, 1.0, 20001)
+    discharge = np.interp(t, times, velocity) * np.interp(t, times, depth) * width
+    prescribed = np.trapezoid(discharge, t)
+    entered = count[-1] * 0.02**dim
+    assert entered == pytest.approx(prescribed, rel=0.02)
+    # Spawned particles sit in front of the boundary (on its fluid side) only.
+    fluid = np.asarray(state.active & (state.kind == int(jaxmps.Kind.FLUID)))
+    ahead = direction * (np.asarray(state.position)[fluid, axis] - inflow.origin)
+    assert np.all(ahead > 0)
+    # Depth decides the rows: nothing spawned above the highest prescribed depth.
+    assert np.asarray(state.position)[fluid, dim - 1].max() < depth.max()
+
+
+def _tank_with_inflow(l0, depth, length, velocity, wall=0.16, series=None):
+    """A 2-D tank `length` long filled to `depth` whose left wall is an inflow
+    boundary `wall` high: scene, params, state, the fluid and the Inflow."""
+    fluid = jaxmps.geometry.block([0.0, 0.0], [length, depth], l0)
+    walls, wall_kind = jaxmps.geometry.tank([0.0, 0.0], [length, wall], l0)
+    keep = ~((walls[:, 0] < 0) & (walls[:, 1] > 0))
+    walls, wall_kind = walls[keep], wall_kind[keep]
+    first = len(fluid) + len(walls)
+    boundary, boundary_kind, inflow = jaxmps.fluid.inflow_boundary(
+        0.0, [0.0, 0.0], [0.0, wall], l0, first=first
+    )
+    position = np.concatenate([fluid, walls, boundary])
+    kind = np.concatenate(
+        [np.full(len(fluid), int(jaxmps.Kind.FLUID)), wall_kind, boundary_kind]
+    )
+    scene = jaxmps.make_scene(
+        position, l0, ([-0.1, -0.1], [length + 0.1, 0.3]), capacity=len(position) + 100
+    )
+    scene = eqx.tree_at(lambda s: s.inflow, scene, inflow, is_leaf=lambda x: x is None)
+    params = eqx.tree_at(
+        lambda p: p.inflow,
+        jaxmps.make_params(2, dt=1e-3),
+        jaxmps.fluid.InflowParams(velocity=velocity, **(series or {})),
+        is_leaf=lambda x: x is None,
+    )
+    state = jaxmps.make_state(scene, position, kind)
+    return scene, params, state, fluid, inflow
+
+
+def test_negative_inflow_velocity_withdraws_water_at_the_prescribed_rate():
+    """Aida's outflow rule in a full run: a tank 0.4 m long, 0.1 m deep, whose left
+    wall is an inflow boundary driven backwards at 0.1 m/s for 0.5 s. The water
+    follows the boundary and the columns in front of it go back to the pool: what
+    leaves is u x (the mean depth, which falls from 0.1 to about 0.089 m) x T, and
+    no water is left behind or inside the boundary that stepped into it."""
+    l0, depth, length = 0.01, 0.1, 0.4
+    scene, params, state, fluid, inflow = _tank_with_inflow(l0, depth, length, -0.1)
+    # 0.55 s: midway between the fifth and sixth withdrawal (one per l0 travelled).
+    times = np.linspace(0.05, 0.55, 11)
+    count = jaxmps.scenes.FluidCount("fluid")
+    run = jaxmps.simulate(
+        scene,
+        params,
+        state,
+        times=times,
+        observe=jaxmps.scenes.observe_probes((count,)),
+    )
+    left = np.asarray(run.saved["fluid"])
+    removed = (len(fluid) - left[-1]) * l0**2
+    final_depth = left[-1] * l0**2 / length
+    prescribed = 0.1 * times[-1] * 0.5 * (depth + final_depth)
+    # The rule acts in whole columns: within one column of u x mean depth x T.
+    assert abs(removed - prescribed) <= depth * l0
+    assert np.all(np.diff(left) <= 0)
+    x = np.asarray(run.state.position)
+    wet = np.asarray(run.state.active & (run.state.kind == int(jaxmps.Kind.FLUID)))
+    face = x[list(inflow.pressure_layer), 0].max()
+    assert x[wet, 0].min() > face + 0.4 * l0
+
+
+def test_inflow_params_refuse_bad_series():
+    with pytest.raises(ValueError, match="increasing"):
+        jaxmps.fluid.InflowParams(velocity=[1.0, 1.0], times=[0.0, 0.0])
+    with pytest.raises(ValueError, match="shape"):
+        jaxmps.fluid.InflowParams(velocity=[1.0, 1.0, 2.0], times=[0.0, 1.0])
+    with pytest.raises(ValueError, match="depth"):
+        jaxmps.fluid.InflowParams(velocity=1.0, depth=-0.1)
+
+
+def test_inflow_deeper_than_its_boundary_is_refused():
+    """A wave higher than the inflow boundary (0.16 m) cannot be fed: refused
+    before the run, naming the setting."""
+    scene, params, state, _, _ = _tank_with_inflow(
+        0.02, 0.1, 0.4, [1.0, 1.0], series={"times": [0.0, 1.0], "depth": [0.1, 0.2]}
+    )
+    with pytest.raises(ValueError, match="inflow.depth"):
+        jaxmps.simulate(scene, params, state, 2, 2)

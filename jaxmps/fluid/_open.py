@@ -4,81 +4,212 @@ allocated: the State's shapes never change."""
 
 import equinox as eqx
 import jax.numpy as jnp
+import numpy as np
 from jaxtyping import Array, Bool, Float
 
 from .._params import InflowParams
 from .._state import State
 from .._types import Kind
+from ..geometry import block
 from ..neighbours import Grid
 from ..operators import Discretisation
 
 
 class Inflow(eqx.Module):
-    """A moving inflow boundary at the upstream (low-x) end.
+    """A moving inflow boundary at one end of the domain, facing the fluid along
+    `direction` x e_axis (in 2-D and 3-D).
 
     Boundary particles (a pressure-wall layer facing the fluid plus dummy layers
-    behind it) move along +x at the inflow velocity. Each time the pressure layer has
-    travelled one spacing from `origin`, a column of fluid particles is activated from
-    the inactive pool at the pressure-layer positions and the boundary steps back by
-    l0. The spawned column height is fixed by the pressure layer (Aida's option (i):
-    a prescribed number of particles, which also feeds a dry bed).
+    behind it) move along the inflow direction at the inflow velocity. Each time the
+    pressure layer has travelled one spacing from `origin`, a column (a sheet, in
+    3-D) of fluid particles is activated from the inactive pool at the
+    pressure-layer positions below the prescribed depth, and the boundary steps
+    back by l0 (Aida 2014, option (i): a prescribed number of particles, which
+    reproduces a prescribed surface elevation and also feeds a dry bed). When the
+    velocity is negative and the boundary has retreated one spacing, the fluid
+    within one spacing in front of it is returned to the pool and the boundary
+    steps forward by l0 (Aida's outflow rule).
 
     Attributes:
         pressure_layer: indices of the pressure-layer boundary particles.
         boundary: indices of all boundary particles (pressure + dummy layers).
-        origin: initial x of the pressure layer [m].
+        origin: initial coordinate of the pressure layer along `axis` [m].
+        axis: the axis the boundary moves along (0 = x).
+        direction: +1 when the fluid lies on the boundary's +axis side, -1 when it
+            lies on the -axis side (an inflow at the high end).
     """
 
     pressure_layer: tuple[int, ...]
     boundary: tuple[int, ...]
     origin: float
+    axis: int = 0
+    direction: int = 1
+
+    def __check_init__(self):
+        if self.direction not in (1, -1):
+            raise ValueError(
+                f"Inflow.direction must be +1 or -1, got {self.direction}."
+            )
 
 
 class Outflow(eqx.Module):
-    """Fluid particles beyond `position` along `axis` leave the simulation: they are
-    deactivated (returned to the pool) and parked at the domain origin."""
+    """Fluid particles beyond `position` along `direction` x e_axis leave the
+    simulation: they are deactivated (returned to the pool) and parked at the domain
+    origin."""
 
     position: float
     axis: int = 0
+    direction: int = 1
+
+    def __check_init__(self):
+        if self.direction not in (1, -1):
+            raise ValueError(
+                f"Outflow.direction must be +1 or -1, got {self.direction}."
+            )
+
+
+def inflow_boundary(
+    face: float,
+    lower,
+    upper,
+    spacing: float,
+    *,
+    axis: int = 0,
+    direction: int = 1,
+    layers: int = 3,
+    first: int = 0,
+) -> tuple[np.ndarray, np.ndarray, Inflow]:
+    """The particles of an inflow boundary whose fluid starts at `face` along
+    `axis` and lies on its `direction` side, across the box [`lower`, `upper`] of
+    the other axes (the entries at `axis` are ignored): a pressure layer l0/2
+    behind the face and `layers` - 1 dummy layers behind it, on the lattice of
+    spacing l0. `first` is the index the first of them will have in the state.
+
+    Returns:
+        positions (m, d), kinds (m,) (`Kind.WALL`, then `Kind.DUMMY`) and the
+        `Inflow` that moves them.
+    """
+    lower = np.array(lower, dtype=np.float64)
+    upper = np.array(upper, dtype=np.float64)
+    if direction not in (1, -1):
+        raise ValueError(f"direction must be +1 or -1, got {direction}.")
+    if layers < 1:
+        raise ValueError(f"layers must be at least 1, got {layers}.")
+    lower[axis], upper[axis] = 0.0, spacing
+    sheet = block(lower, upper, spacing)
+    sheet[:, axis] = 0.0
+    offsets = -direction * (np.arange(layers) + 0.5) * spacing
+    points = np.concatenate(
+        [sheet + (face + o) * np.eye(len(lower))[axis] for o in offsets]
+    )
+    kinds = np.where(np.arange(len(points)) < len(sheet), Kind.WALL, Kind.DUMMY)
+    inflow = Inflow(
+        pressure_layer=tuple(range(first, first + len(sheet))),
+        boundary=tuple(range(first, first + len(points))),
+        origin=float(face + offsets[0]),
+        axis=axis,
+        direction=direction,
+    )
+    return points, kinds.astype(np.int32), inflow
 
 
 def apply_inflow(
     disc: Discretisation,
     inflow: Inflow,
     params: InflowParams,
+    grid: Grid,
     dt: Float[Array, ""],
     state: State,
 ) -> tuple[State, Bool[Array, ""]]:
-    """Move the inflow boundary and spawn a fluid column when it has moved l0.
+    """Move the inflow boundary over [t, t + dt] and spawn a fluid column when it
+    has advanced l0 (or withdraw one when it has retreated l0).
 
     Returns the new state and whether the pool was too small for a spawn (the spawn
     is then partial; `Result.pool_exhausted` is set by the step).
     Discrete decision: when a column spawns carries no gradient; the spawned
     particles' positions and velocities do (through the inflow velocity).
     """
+    axis, sign, l0 = inflow.axis, inflow.direction, disc.spacing
+    layer = jnp.asarray(inflow.pressure_layer)
+    boundary = jnp.asarray(inflow.boundary)
+    u_start, _ = params.at(state.time)
+    u_end, depth = params.at(state.time + dt)
+    # The trapezoid of the velocity over the step: a tabulated series is followed
+    # exactly (piecewise linear), the boundary carries the step's mean velocity.
+    shift = 0.5 * (u_start + u_end) * dt
+    e = jnp.zeros(disc.dim, state.position.dtype).at[axis].set(sign)
+    position = state.position.at[boundary, axis].add(sign * shift)
+    velocity = state.velocity.at[boundary].set((shift / dt) * e)
+    travel = sign * (position[layer[0], axis] - inflow.origin)
+    state = eqx.tree_at(lambda s: (s.position, s.velocity), state, (position, velocity))
+    state, short = _spawn(inflow, depth, l0, u_end * e, travel >= l0, state)
+    state = _withdraw(inflow, grid, l0, travel <= -l0, state)
+    return state, short
+
+
+def _spawn(inflow: Inflow, depth, l0: float, velocity, spawn, state: State):
+    """Activate pool slots at the pressure layer's positions below `depth` (all of
+    them when None) when `spawn`, then step the boundary back by l0. Returns the
+    state and whether the pool ran short."""
     n = state.position.shape[0]
     layer = jnp.asarray(inflow.pressure_layer)
     boundary = jnp.asarray(inflow.boundary)
-    u = params.velocity
-    e_x = jnp.zeros(disc.dim, state.position.dtype).at[0].set(1.0)
-    position = state.position.at[boundary, 0].add(u * dt)
-    velocity = state.velocity.at[boundary].set(u * e_x)
-    spawn = position[layer[0], 0] - inflow.origin >= disc.spacing
+    at_layer = state.position[layer]
+    up = at_layer.shape[1] - 1
+    if depth is None:
+        fed = jnp.ones(layer.shape[0], bool)
+    else:
+        bottom = jnp.min(at_layer[:, up]) - 0.5 * l0
+        fed = at_layer[:, up] - bottom < depth
     free = jnp.nonzero(~state.active, size=layer.shape[0], fill_value=n)[0]
-    short = spawn & jnp.any(free == n)
-    target = jnp.where(spawn, free, n)
-    position = position.at[target].set(position[layer], mode="drop")
-    velocity = velocity.at[target].set(u * e_x, mode="drop")
-    kind = state.kind.at[target].set(int(Kind.FLUID), mode="drop")
-    active = state.active.at[target].set(True, mode="drop")
-    pressure = state.pressure.at[target].set(0.0, mode="drop")
-    position = position.at[boundary, 0].add(jnp.where(spawn, -disc.spacing, 0.0))
+    slot = free[jnp.clip(jnp.cumsum(fed) - 1, 0, layer.shape[0] - 1)]
+    short = spawn & jnp.any(fed & (slot == n))
+    target = jnp.where(spawn & fed, slot, n)
+    position = state.position.at[target].set(at_layer, mode="drop")
+    position = position.at[boundary, inflow.axis].add(
+        jnp.where(spawn, -inflow.direction * l0, 0.0)
+    )
     new = eqx.tree_at(
         lambda s: (s.position, s.velocity, s.kind, s.active, s.pressure),
         state,
-        (position, velocity, kind, active, pressure),
+        (
+            position,
+            state.velocity.at[target].set(velocity, mode="drop"),
+            state.kind.at[target].set(int(Kind.FLUID), mode="drop"),
+            state.active.at[target].set(True, mode="drop"),
+            state.pressure.at[target].set(0.0, mode="drop"),
+        ),
     )
     return new, short
+
+
+def _withdraw(inflow: Inflow, grid: Grid, l0: float, withdraw, state: State):
+    """When `withdraw`, return the fluid within one spacing in front of the
+    pressure layer's original place (and any behind it, over the layer's
+    cross-section) to the pool, and step the boundary forward by l0."""
+    axis, sign = inflow.axis, inflow.direction
+    layer = jnp.asarray(inflow.pressure_layer)
+    at_layer = state.position[layer]
+    across = [k for k in range(at_layer.shape[1]) if k != axis]
+    inside = jnp.ones(state.position.shape[0], bool)
+    for k in across:
+        low = jnp.min(at_layer[:, k]) - 0.5 * l0
+        high = jnp.max(at_layer[:, k]) + 0.5 * l0
+        inside &= (state.position[:, k] >= low) & (state.position[:, k] < high)
+    ahead = sign * (state.position[:, axis] - inflow.origin)
+    gone = (
+        withdraw
+        & state.active
+        & (state.kind == int(Kind.FLUID))
+        & inside
+        & (ahead < 0.5 * l0)
+    )
+    state = _retire(gone, grid, state)
+    boundary = jnp.asarray(inflow.boundary)
+    position = state.position.at[boundary, axis].add(
+        jnp.where(withdraw, sign * l0, 0.0)
+    )
+    return eqx.tree_at(lambda s: s.position, state, position)
 
 
 def apply_outflow(outflow: Outflow, grid: Grid, state: State) -> State:
@@ -86,8 +217,13 @@ def apply_outflow(outflow: Outflow, grid: Grid, state: State) -> State:
     gone = (
         state.active
         & (state.kind == int(Kind.FLUID))
-        & (state.position[:, outflow.axis] > outflow.position)
+        & (outflow.direction * (state.position[:, outflow.axis] - outflow.position) > 0)
     )
+    return _retire(gone, grid, state)
+
+
+def _retire(gone, grid: Grid, state: State) -> State:
+    """Return the `gone` particles to the pool, parked at the domain origin."""
     origin = jnp.asarray(grid.origin, state.position.dtype)[None, :]
     return eqx.tree_at(
         lambda s: (s.position, s.velocity, s.pressure, s.active),

@@ -44,6 +44,7 @@ from ._probes import DisplacedDepth as DisplacedDepth
 from ._probes import Displacement as Displacement
 from ._probes import ElasticAmplitude as ElasticAmplitude
 from ._probes import ElasticValue as ElasticValue
+from ._probes import FluidCount as FluidCount
 from ._probes import FluidPressureNear as FluidPressureNear
 from ._probes import FrontPosition as FrontPosition
 from ._probes import GrainHeight as GrainHeight

@@ -3,15 +3,12 @@
 import math
 
 import equinox as eqx
-import jax.numpy as jnp
 import numpy as np
-from jaxtyping import Array, Float
 
 from .. import geometry
 from .._build import add_rigid_bodies, make_state
 from .._params import Params
 from .._scene import Scene
-from .._state import State
 from .._types import Kind
 from ..fluid import Inflow, InflowParams, Outflow
 from ._bodies import block_probes, coulomb
@@ -25,7 +22,7 @@ from ._flume_bed import (
     optional,
     stored_area,
 )
-from ._probes import AbstractProbe, WaterLevel
+from ._probes import FluidCount, WaterLevel
 
 DEFAULTS = {
     "discharge": 0.04,  # unit discharge q [m^2/s] (seed 002 Ch. 4)
@@ -84,17 +81,6 @@ _PIECES = (
     "scour_exposure",
     "block_gap",
 )
-
-
-class FluidCount(AbstractProbe):
-    """Number of active fluid particles (mass in units of one particle)."""
-
-    name: str
-
-    def __call__(self, scene: Scene, state: State) -> Float[Array, ""]:
-        del scene
-        fluid = state.active & (state.kind == int(Kind.FLUID))
-        return jnp.sum(fluid).astype(state.position.dtype)
 
 
 def flume(**overrides) -> Case:

@@ -52,6 +52,17 @@ class FrontPosition(AbstractProbe):
         return jnp.where(run > 0, front, 0.0)
 
 
+class FluidCount(AbstractProbe):
+    """Number of active fluid particles (mass in units of one particle)."""
+
+    name: str
+
+    def __call__(self, scene: Scene, state: State) -> Float[Array, ""]:
+        del scene
+        fluid = state.active & (state.kind == int(Kind.FLUID))
+        return jnp.sum(fluid).astype(state.position.dtype)
+
+
 class WaterLevel(AbstractProbe):
     """Height of the highest fluid particle within l0/2 of `x` (first axis) plus l0/2,
     measured from `floor` [m]; zero when the column is dry."""
