@@ -44,6 +44,7 @@ from ._probes import DisplacedDepth as DisplacedDepth
 from ._probes import Displacement as Displacement
 from ._probes import ElasticAmplitude as ElasticAmplitude
 from ._probes import ElasticValue as ElasticValue
+from ._probes import FlowVelocity as FlowVelocity
 from ._probes import FluidCount as FluidCount
 from ._probes import FluidPressureNear as FluidPressureNear
 from ._probes import FrontPosition as FrontPosition
@@ -64,6 +65,8 @@ from ._sloshing import natural_frequency as natural_frequency
 from ._sloshing import sloshing_tank as _sloshing_tank
 from ._sloshing import standing_wave as _standing_wave
 from ._sloshing import standing_wave_period as standing_wave_period
+from ._tsunami import TSUNAMI_QUAY as _TSUNAMI_QUAY
+from ._tsunami import tsunami_quay as _tsunami_quay
 from ._wave_tank import DEFAULTS as _WAVE_TANK
 from ._wave_tank import wave_tank as _wave_tank
 
@@ -84,6 +87,7 @@ granular_collapse = accepts_porous(_granular_collapse)
 hydrostatic = accepts_porous(_hydrostatic)
 sloshing_tank = accepts_porous(_sloshing_tank)
 standing_wave = accepts_porous(_standing_wave)
+tsunami_quay = accepts_porous(_tsunami_quay)
 wave_tank = accepts_porous(_wave_tank)
 
 _REGISTRY = {
@@ -103,6 +107,7 @@ _REGISTRY = {
     "hydrostatic": (hydrostatic, _HYDROSTATIC),
     "sloshing_tank": (sloshing_tank, _SLOSHING_TANK),
     "standing_wave": (standing_wave, _STANDING_WAVE),
+    "tsunami_quay": (tsunami_quay, _TSUNAMI_QUAY),
     "wave_tank": (wave_tank, _WAVE_TANK),
 }
 

@@ -52,7 +52,7 @@ def _orientation(dim: int, degrees: float):
     return [[0.0, -degrees, 0.0]]  # rotation about y taking x towards z is -angle
 
 
-def _body_scene(config, position, domain, kind):
+def _body_scene(config, position, domain, kind, capacity=None):
     """The scene of a case with bodies. A rotating or deforming body fills cells
     differently from the initial lattice: allow the densest lattice packing of a
     particle's stencil box (5 cells of (r_e + skin) / 2 a side), with margin."""
@@ -63,6 +63,7 @@ def _body_scene(config, position, domain, kind):
         domain,
         kind,
         candidate_capacity=math.ceil(1.5 * (stencil_box + 1.0) ** position.shape[1]),
+        capacity=capacity,
     )
 
 

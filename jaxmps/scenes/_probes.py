@@ -81,6 +81,24 @@ class WaterLevel(AbstractProbe):
         return jnp.where(jnp.isfinite(level), level, 0.0)
 
 
+class FlowVelocity(AbstractProbe):
+    """Mean velocity component `axis` of the fluid within l0/2 of `x` (first axis)
+    [m/s], over the whole column (and, in 3-D, the whole width); zero where it is
+    dry."""
+
+    name: str
+    x: float
+    spacing: float
+    axis: int = 0
+
+    def __call__(self, scene: Scene, state: State):
+        del scene
+        fluid = jnp.logical_and(state.active, state.kind == int(Kind.FLUID))
+        near = fluid & (jnp.abs(state.position[:, 0] - self.x) < 0.5 * self.spacing)
+        total = jnp.sum(jnp.where(near, state.velocity[:, self.axis], 0.0))
+        return total / jnp.maximum(jnp.sum(near), 1)
+
+
 class PressureAt(AbstractProbe):
     """Mean pressure [Pa] of a fixed set of particles (wall points, or fluid points
     chosen at build time)."""
@@ -283,12 +301,18 @@ class WallForce(AbstractProbe):
     wall pressure integrated over the contact face). Positive into the wall. A probe
     is a function of one state: the impulse on the segment is the time integral of
     the saved history (save every step for impacts, as `block_impact`'s test does).
+
+    `dry` is the pressure a wall particle carries with no water on it (the
+    semi-implicit solver's `surface_head` rho |g| l0; 0 for the explicit solver):
+    with it, each particle counts P_i - dry where that is positive, so that a dry
+    face reads zero (a wetted one then reads up to dry x l0^(d-1) per particle low).
     """
 
     name: str
     lower: tuple[float, ...]
     upper: tuple[float, ...]
     spacing: float
+    dry: float = 0.0
 
     def __call__(self, scene: Scene, state: State):
         del scene
@@ -298,7 +322,10 @@ class WallForce(AbstractProbe):
         inside = jnp.all((x >= lower) & (x <= upper), axis=-1)
         wall = state.active & (state.kind == int(Kind.WALL)) & inside
         area = self.spacing ** (x.shape[-1] - 1)
-        return jnp.sum(jnp.where(wall, state.pressure, 0.0)) * area
+        excess = (
+            jnp.maximum(state.pressure - self.dry, 0.0) if self.dry else state.pressure
+        )
+        return jnp.sum(jnp.where(wall, excess, 0.0)) * area
 
 
 class RunUp(AbstractProbe):

@@ -1,0 +1,445 @@
+"""Seed 000's application: a tsunami running up over a quay and carrying an
+unmoored ship towards a building (seed 000 chapters 4-5), in 2-D (a cross-section)
+and 3-D."""
+
+import math
+
+import equinox as eqx
+import numpy as np
+
+from .. import geometry
+from .._build import add_elastic_bodies, add_rigid_bodies, make_state
+from .._types import Kind
+from ..fluid import InflowParams, Outflow, inflow_boundary
+from ._bodies import _body_scene
+from ._case import Case
+from ._common import boundary_layers, case_params, resolve, whole
+from ._probes import (
+    BodyValue,
+    ElasticValue,
+    FlowVelocity,
+    FluidCount,
+    WallForce,
+    WaterLevel,
+)
+
+# Lengths and times are the prototype's (full scale) and are Froude-scaled by
+# `scale`; `spacing` is the model's particle size.
+TSUNAMI_QUAY = {
+    "scale": 1.0,  # model / prototype length; times scale by its square root
+    "sea_depth": 12.0,
+    "sea_length": 60.0,  # from the inflow boundary to the quay edge
+    "quay_crest": 2.0,  # quay top above the still water
+    "quay_length": 100.0,  # from the quay edge to the landward (outflow) end
+    # The tsunami at the inflow boundary: a long wave of height `tsunami_height`
+    # rising over `rise_time` (half a cosine), held for `hold_time`, falling over
+    # `fall_time`.
+    "tsunami_height": 8.0,
+    "rise_time": 10.0,
+    "hold_time": 20.0,
+    "fall_time": 10.0,
+    # The ship (seed 000 Table 5.1-1): broadside to the flow, `ship_gap` seaward
+    # of the quay edge, floating at `ship_draft`.
+    "ship_beam": 17.0,  # along the flow
+    "ship_length": 100.0,  # along the quay (3-D)
+    "ship_draft": 4.0,
+    "ship_height": 8.0,
+    "ship_gap": 2.0,
+    "ship": True,  # False: the tsunami alone
+    "ship_body": "rigid",
+    "mu_static": 0.5,
+    "mu_kinetic": None,
+    "youngs_modulus": 1.0e9,  # elastic ship only
+    "poisson_ratio": 0.3,  # elastic ship only
+    # The building (seed 000 Table 5.1-2) on the quay: none unless its depth is set.
+    "building_depth": None,  # along the flow
+    "building_length": 30.0,  # along the quay (3-D)
+    "building_height": 38.0,
+    "building_distance": 40.0,  # its front face from the quay edge
+    "width": None,  # 3-D channel width (default: ship length + 2 beams)
+    "gauge_spacing": 3.0,  # quay gauges every so far from the edge (seed: 3 m)
+    "gauges": 4,
+    "offshore_gauge": 30.0,  # the sea gauge, seaward of the quay edge
+    "pool": None,  # inactive slots for the inflow (default: what the wave brings)
+    "spacing": 0.5,
+    "dim": 2,
+    "t_end": 40.0,
+}
+
+_LENGTHS = (
+    "sea_depth",
+    "sea_length",
+    "quay_crest",
+    "quay_length",
+    "tsunami_height",
+    "ship_beam",
+    "ship_length",
+    "ship_draft",
+    "ship_height",
+    "ship_gap",
+    "building_depth",
+    "building_length",
+    "building_height",
+    "building_distance",
+    "width",
+    "gauge_spacing",
+    "offshore_gauge",
+)
+_TIMES = ("rise_time", "hold_time", "fall_time", "t_end")
+
+
+def tsunami_quay(**overrides) -> Case:
+    """A sea `sea_depth` deep and `sea_length` long, fed at its seaward end by an
+    inflow boundary that brings in a long wave (`tsunami_height`, `rise_time`,
+    `hold_time`, `fall_time`), in front of a quay whose top lies `quay_crest`
+    above the still water and runs `quay_length` landward to an outflow. An
+    unmoored ship (`ship_beam` x `ship_height`, `ship_length` along the quay in
+    3-D) floats at `ship_draft` with its side `ship_gap` off the quay edge
+    (`ship=False`: none, the tsunami alone);
+    `ship_body` is "rigid" (friction `mu_static` / `mu_kinetic` with the quay) or
+    "elastic" (`youngs_modulus`, `poisson_ratio`). With `building_depth` a
+    building (`building_length` x `building_depth` x `building_height`) stands on
+    the quay with its front face `building_distance` from the edge. In 3-D the
+    channel is `width` wide between side walls, ship and building on its centre
+    line.
+
+    Lengths and times are the prototype's (seed 000: l0 = 1 m); `scale` scales
+    the scene by Froude similarity (lengths x scale, times and velocities x
+    sqrt(scale)), and `spacing` is the model's particle size. The built case is
+    in model units.
+
+    The wave at the boundary: depth h + eta(t) and velocity
+    u = 2 (sqrt(g (h + eta)) - sqrt(g h)), the simple (Riemann) wave running
+    onto still water of depth h.
+
+    Probes: `ship_x`, `ship_z` (centre), `ship_u`, `ship_w` (velocity),
+    `ship_angle` (rigid only) with a ship, `fluid_count`, `sea_level` and `sea_u` at
+    `offshore_gauge` (depth over the sea bed, mean flow velocity), `quay_depth_k`
+    and `quay_u_k` at the k-th quay gauge (k = 1..`gauges`; inundation depth over
+    the quay top) and, with a building, `building_force` (the pressure force on
+    its front face, N or N/m in 2-D; its time integral is the impulse).
+    """
+    c = resolve("tsunami_quay", TSUNAMI_QUAY, overrides)
+    g = _geometry(c)
+    dim = int(c["dim"])
+    series = _series(c, g)
+    parts = _parts(c, g)
+    position = np.concatenate([p for p, _ in parts.values()])
+    kind = np.concatenate([k for _, k in parts.values()]).astype(np.int32)
+    n_sea, n_ship = len(parts["sea"][0]), len(parts["ship"][0])
+    first_inflow = len(position) - len(parts["inflow"][0])
+    capacity = len(position) + _pool(c, g, series)
+    scene = _body_scene(c, position, _domain(c, g), kind, capacity=capacity)
+    u_max = float(np.max(series.velocity))
+    speed = u_max + math.sqrt(c["gravity"] * (g["sea_depth"] + g["tsunami_height"]))
+    params = case_params(c, dim, speed)
+    state = make_state(scene, position, kind)
+    body = np.full(len(position), -1)
+    body[n_sea : n_sea + n_ship] = 0
+    density = c["density"] * g["ship_draft"] / g["ship_height"]
+    if not c["ship"]:
+        pass
+    elif c["ship_body"] == "rigid":
+        scene, params, state = add_rigid_bodies(
+            scene,
+            params,
+            state,
+            body,
+            density=density,
+            mu_static=c["mu_static"],
+            mu_kinetic=c["mu_kinetic"],
+        )
+    else:
+        scene, params, state = add_elastic_bodies(
+            scene,
+            params,
+            state,
+            body,
+            youngs_modulus=c["youngs_modulus"],
+            poisson_ratio=c["poisson_ratio"],
+            density=density,
+        )
+    _, _, inflow = _inflow(c, g, first_inflow)
+    end = g["sea_length"] + g["quay_length"]
+    scene = eqx.tree_at(
+        lambda s: (s.inflow, s.outflow),
+        scene,
+        (inflow, Outflow(position=end)),
+        is_leaf=lambda x: x is None,
+    )
+    params = eqx.tree_at(
+        lambda p: p.inflow, params, series, is_leaf=lambda x: x is None
+    )
+    config = {**c, **g, "ship_density": density, "quay_edge": g["sea_length"]}
+    t_end = g["t_end"]
+    dry = getattr(scene.solver, "surface_head", 0.0) * c["density"] * c["gravity"]
+    probes = _probes(c, g, dry * c["spacing"])
+    return Case("tsunami_quay", scene, params, state, probes, t_end, config)
+
+
+def _geometry(c: dict) -> dict:
+    """The scene's lengths in model metres on the lattice of l0 (the wave height
+    off it) and its times in model seconds, checked against each other."""
+    l0, s = c["spacing"], c["scale"]
+    if c["ship_body"] not in ("rigid", "elastic"):
+        raise ValueError(
+            f"ship_body={c['ship_body']!r} is not a body model; valid: rigid, elastic."
+        )
+    g = {}
+    for key in _LENGTHS:
+        g[key] = None if c[key] is None else whole(float(c[key]) * s, l0)
+    g["tsunami_height"] = float(c["tsunami_height"]) * s
+    for key in _TIMES:
+        g[key] = float(c[key]) * math.sqrt(s)
+    if g["width"] is None:
+        g["width"] = g["ship_length"] + 2 * g["ship_beam"]
+    _check_geometry(c, g)
+    return g
+
+
+def _check_geometry(c: dict, g: dict) -> None:
+    """ValueError naming the setting when the parts overlap or leave the scene."""
+    l0, dim = c["spacing"], int(c["dim"])
+    if not g["ship_draft"] < g["ship_height"]:
+        raise ValueError("ship_draft must be below ship_height (the ship would sink).")
+    if not g["ship_draft"] < g["sea_depth"]:
+        raise ValueError(
+            "ship_draft must be below sea_depth: the ship would rest on the sea bed."
+        )
+    if not g["ship_gap"] >= l0:
+        raise ValueError(
+            f"ship_gap={c['ship_gap']:g} puts the ship into the quay; give at least "
+            "one spacing (scaled)."
+        )
+    if g["sea_length"] - g["ship_gap"] - g["ship_beam"] < 4 * l0:
+        raise ValueError(
+            "The ship reaches the inflow boundary; lengthen sea_length or shorten "
+            "ship_gap / ship_beam."
+        )
+    if not 0 < g["offshore_gauge"] < g["sea_length"]:
+        raise ValueError("offshore_gauge must lie in the sea (below sea_length).")
+    if int(c["gauges"]) * g["gauge_spacing"] >= g["quay_length"]:
+        raise ValueError("The quay gauges run past quay_length; fewer `gauges`.")
+    if dim == 3 and g["ship_length"] + 2 * l0 > g["width"]:
+        raise ValueError("ship_length does not fit in `width`; widen the channel.")
+    if g["building_depth"] is None:
+        return
+    if g["building_distance"] + g["building_depth"] > g["quay_length"] - 2 * l0:
+        raise ValueError(
+            "The building stands past the quay's end; lower building_distance or "
+            "lengthen quay_length."
+        )
+    if dim == 3 and g["building_length"] > g["width"]:
+        raise ValueError("building_length does not fit in `width`.")
+
+
+def _series(c: dict, g: dict) -> InflowParams:
+    """The wave at the inflow boundary: depth h + eta(t), velocity of the simple
+    wave, sampled finely enough for linear interpolation (0.1 % of eta)."""
+    rise, hold, fall = g["rise_time"], g["hold_time"], g["fall_time"]
+    t = np.unique(
+        np.concatenate(
+            [
+                np.linspace(0.0, rise, 41),
+                np.linspace(rise, rise + hold, 2),
+                np.linspace(rise + hold, rise + hold + fall, 41),
+            ]
+        )
+    )
+    eta = np.where(
+        t < rise,
+        0.5 * (1 - np.cos(np.pi * t / rise)),
+        np.where(
+            t <= rise + hold, 1.0, 0.5 * (1 + np.cos(np.pi * (t - rise - hold) / fall))
+        ),
+    )
+    eta = g["tsunami_height"] * eta
+    h, grav = g["sea_depth"], c["gravity"]
+    velocity = 2 * (np.sqrt(grav * (h + eta)) - np.sqrt(grav * h))
+    return InflowParams(velocity=velocity, times=t, depth=h + eta)
+
+
+def _inflow_top(g: dict, l0: float) -> float:
+    """The inflow boundary's height: two spacings above the wave's crest."""
+    return (math.ceil((g["sea_depth"] + g["tsunami_height"]) / l0 - 1e-9) + 2) * l0
+
+
+def _top(g: dict, l0: float) -> float:
+    """The walls' top: room for the wave reflected off the quay (twice its height)."""
+    h, eta = g["sea_depth"], g["tsunami_height"]
+    return (math.ceil((h + max(2 * eta, g["quay_crest"] + eta)) / l0) + 2) * l0
+
+
+def _across(g: dict, dim: int, length: float, l0: float) -> tuple[list, list]:
+    """The lower and upper bounds across the channel of a part `length` long on its
+    centre line, on the lattice (nothing in 2-D)."""
+    if dim == 2:
+        return [], []
+    start = round(0.5 * (g["width"] - length) / l0) * l0
+    return [start], [start + length]
+
+
+def _parts(c: dict, g: dict) -> dict:
+    """Each group of particles with its kinds, in the state's order: the sea, the
+    ship, the bed, quay and side walls, the building, the wall above the inflow
+    and the inflow boundary (last)."""
+    l0, dim = c["spacing"], int(c["dim"])
+    h, edge = g["sea_depth"], g["sea_length"]
+    wide = [0.0] if dim == 3 else []
+    width = [g["width"]] if dim == 3 else []
+    lo, hi = _across(g, dim, g["ship_length"], l0)
+    x0 = edge - g["ship_gap"] - g["ship_beam"]
+    keel = h - g["ship_draft"]
+    ship = geometry.block(
+        [x0] + lo + [keel], [edge - g["ship_gap"]] + hi + [keel + g["ship_height"]], l0
+    )
+    if not c["ship"]:
+        ship = ship[:0]
+    sea = geometry.block([0.0] + wide + [0.0], [edge] + width + [h], l0)
+    sea = geometry.remove_overlaps(sea, ship, 0.99 * l0)
+    parts = {
+        "sea": (sea, np.full(len(sea), int(Kind.FLUID))),
+        "ship": (ship, np.full(len(ship), int(Kind.FLUID))),
+        "solid": _solid(c, g),
+    }
+    if g["building_depth"] is not None:
+        parts["building"] = _building(c, g)
+    top_in, layers = _inflow_top(g, l0), boundary_layers(c)
+    head = geometry.block(
+        [-layers * l0] + wide + [top_in], [0.0] + width + [_top(g, l0)], l0
+    )
+    parts["head"] = (head, np.where(head[:, 0] > -l0, Kind.WALL, Kind.DUMMY))
+    points, kinds, _ = _inflow(c, g, 0)
+    parts["inflow"] = (points, kinds)
+    return parts
+
+
+def _inflow(c: dict, g: dict, first: int):
+    """The inflow boundary's particles, kinds and `Inflow` (first index `first`)."""
+    l0, dim = c["spacing"], int(c["dim"])
+    top_in = _inflow_top(g, l0)
+    upper = [0.0] + ([g["width"]] if dim == 3 else []) + [top_in]
+    return inflow_boundary(
+        0.0, [0.0] * dim, upper, l0, layers=boundary_layers(c), first=first
+    )
+
+
+def _solid(c: dict, g: dict):
+    """The bed, the quay and (3-D) the side walls, `layers` deep below the wetted
+    surfaces: pressure walls in the first layer, dummies behind, the quay's
+    interior left out."""
+    l0, dim, layers = c["spacing"], int(c["dim"]), boundary_layers(c)
+    edge, quay_top = g["sea_length"], g["sea_depth"] + g["quay_crest"]
+    end = edge + g["quay_length"]
+    low, high = [-(layers + 2) * l0], [end]
+    if dim == 3:
+        low, high = low + [-layers * l0], high + [g["width"] + layers * l0]
+    box = geometry.block(low + [-layers * l0], high + [_top(g, l0)], l0)
+    x, z = box[:, 0], box[:, -1]
+    # Distance to the wetted region: the sea (x < edge, z > 0) or above the quay.
+    to_sea = np.hypot(np.maximum(x - edge, 0.0), np.maximum(-z, 0.0))
+    to_land = np.maximum(quay_top - z, 0.0)
+    distance = np.minimum(to_sea, to_land)
+    if dim == 3:
+        y = box[:, 1]
+        beside = np.maximum(np.maximum(-y, y - g["width"]), 0.0)
+        distance = np.hypot(distance, beside)
+    layer = np.rint(distance / l0 - 0.5).astype(int)
+    keep = (distance > 0) & (layer < layers)
+    kinds = np.where(layer[keep] == 0, Kind.WALL, Kind.DUMMY)
+    return box[keep], kinds
+
+
+def _building(c: dict, g: dict):
+    """The building on the quay: pressure walls on its faces, dummies behind."""
+    l0, dim, layers = c["spacing"], int(c["dim"]), boundary_layers(c)
+    front = g["sea_length"] + g["building_distance"]
+    base = g["sea_depth"] + g["quay_crest"]
+    lo, hi = _across(g, dim, g["building_length"], l0)
+    box = geometry.block(
+        [front] + lo + [base],
+        [front + g["building_depth"]] + hi + [base + g["building_height"]],
+        l0,
+    )
+    upper = np.array([front + g["building_depth"]] + hi + [base + g["building_height"]])
+    lower = np.array([front] + lo + [-np.inf])  # the base is on the quay
+    depth = np.min(np.minimum(box - lower, upper - box), axis=1)
+    layer = np.rint(depth / l0 - 0.5).astype(int)
+    keep = layer < layers
+    return box[keep], np.where(layer[keep] == 0, Kind.WALL, Kind.DUMMY)
+
+
+def _pool(c: dict, g: dict, series: InflowParams) -> int:
+    """Inactive slots for the inflow: the `pool` setting, or 1.1 x the volume the
+    wave brings in (its discharge integrated) in particles."""
+    if c["pool"] is not None:
+        return int(c["pool"])
+    l0, dim = c["spacing"], int(c["dim"])
+    t = np.asarray(series.times)
+    q = np.asarray(series.velocity) * np.asarray(series.depth)
+    volume = float(np.sum(0.5 * (q[1:] + q[:-1]) * np.diff(t)))
+    across = g["width"] / l0 if dim == 3 else 1.0
+    columns = math.ceil(_inflow_top(g, l0) / l0) * across
+    return math.ceil(1.1 * volume * across / l0**2) + int(4 * columns)
+
+
+def _domain(c: dict, g: dict):
+    """The domain box: the scene with room for splash above the walls."""
+    l0, dim = c["spacing"], int(c["dim"])
+    margin = (boundary_layers(c) + 3) * l0
+    end = g["sea_length"] + g["quay_length"]
+    top = _top(g, l0)
+    lower = [-margin] + ([-margin] if dim == 3 else []) + [-margin]
+    upper = [end + margin] + ([g["width"] + margin] if dim == 3 else [])
+    highest = top
+    if g["building_depth"] is not None:
+        highest = max(top, g["sea_depth"] + g["quay_crest"] + g["building_height"])
+    upper += [highest + 0.5 * top]
+    return np.array(lower), np.array(upper)
+
+
+def _probes(c: dict, g: dict, dry: float) -> tuple:
+    """The ship, the sea and quay gauges and (with one) the building's force
+    (`dry`: the pressure of a dry wall particle)."""
+    l0, dim = c["spacing"], int(c["dim"])
+    edge, quay_top = g["sea_length"], g["sea_depth"] + g["quay_crest"]
+    up = dim - 1
+    if not c["ship"]:
+        ship = ()
+    elif c["ship_body"] == "rigid":
+        ship = (
+            BodyValue("ship_x", 0, "centre", 0),
+            BodyValue("ship_z", 0, "centre", up),
+            BodyValue("ship_u", 0, "velocity", 0),
+            BodyValue("ship_w", 0, "velocity", up),
+            BodyValue("ship_angle", 0, "angle"),
+        )
+    else:
+        ship = (
+            ElasticValue("ship_x", 0, "centre", 0),
+            ElasticValue("ship_z", 0, "centre", up),
+            ElasticValue("ship_u", 0, "velocity", 0),
+            ElasticValue("ship_w", 0, "velocity", up),
+        )
+    sea_x = edge - g["offshore_gauge"] + 0.5 * l0
+    gauges = [
+        WaterLevel("sea_level", sea_x, 0.0, l0),
+        FlowVelocity("sea_u", sea_x, l0),
+    ]
+    for k in range(1, int(c["gauges"]) + 1):
+        x = edge + k * g["gauge_spacing"] - 0.5 * l0
+        gauges.append(WaterLevel(f"quay_depth_{k}", x, quay_top, l0))
+        gauges.append(FlowVelocity(f"quay_u_{k}", x, l0))
+    probes = (*ship, FluidCount("fluid_count"), *gauges)
+    if g["building_depth"] is None:
+        return probes
+    front = edge + g["building_distance"]
+    lo, hi = _across(g, dim, g["building_length"], l0)
+    force = WallForce(
+        "building_force",
+        tuple([front - 0.25 * l0] + lo + [quay_top]),
+        tuple([front + l0] + hi + [quay_top + g["building_height"]]),
+        l0,
+        dry,
+    )
+    return (*probes, force)

@@ -1,0 +1,133 @@
+"""The tsunami-over-a-quay scene (seed 000 chapters 4-5): its construction, its
+wave, its refusals, and a 2-D run in which the wave lifts the ship onto the quay
+(the trends against the seed are in validation/tsunami_quay.py)."""
+
+import math
+
+import numpy as np
+import pytest
+
+import jaxmps
+
+COARSE = dict(spacing=1.0)
+SMALL_3D = dict(
+    spacing=2.0,
+    dim=3,
+    sea_length=40.0,
+    quay_length=30.0,
+    ship_length=20.0,
+    ship_beam=10.0,
+    width=30.0,
+    gauges=2,
+    gauge_spacing=6.0,
+    offshore_gauge=20.0,
+)
+
+
+def test_the_wave_is_the_simple_wave_of_its_height_and_froude_scales():
+    """The inflow feeds depth h + eta at u = 2 (sqrt(g (h + eta)) - sqrt(g h)); at
+    scale 1:100 lengths shrink 100 x and times and speeds 10 x."""
+    full = jaxmps.scenes.tsunami_quay(**COARSE)
+    h, eta, g = 12.0, 8.0, 9.81
+    series = full.params.inflow
+    assert float(np.max(series.depth)) == pytest.approx(h + eta, rel=1e-6)
+    u = 2 * (math.sqrt(g * (h + eta)) - math.sqrt(g * h))
+    assert float(np.max(series.velocity)) == pytest.approx(u, rel=1e-5)
+    assert float(series.times[-1]) == pytest.approx(40.0)
+    # The ship floats at its draft: density rho d / H.
+    assert full.config["ship_density"] == pytest.approx(1000.0 * 4.0 / 8.0)
+    model = jaxmps.scenes.tsunami_quay(scale=0.01, spacing=0.01)
+    assert model.config["sea_depth"] == pytest.approx(0.12)
+    assert float(model.params.inflow.times[-1]) == pytest.approx(4.0)
+    assert float(np.max(model.params.inflow.velocity)) == pytest.approx(
+        0.1 * u, rel=1e-4
+    )
+    assert model.t_end == pytest.approx(4.0)
+
+
+def test_the_pool_holds_what_the_wave_brings():
+    case = jaxmps.scenes.tsunami_quay(**COARSE)
+    series = case.params.inflow
+    t, q = np.asarray(series.times), np.asarray(series.velocity * series.depth)
+    brought = np.trapezoid(q, t) / 1.0**2
+    pool = case.scene.capacity - int(case.state.active.sum())
+    assert pool >= brought
+
+
+@pytest.mark.parametrize(
+    "settings, match",
+    [
+        ({"ship_gap": -5.0}, "ship_gap"),  # overlapping the quay
+        ({"tsunami_height": -2.0}, "tsunami_height"),
+        ({"ship_draft": 12.0, "ship_height": 16.0}, "sea bed"),
+        ({"ship_draft": 9.0}, "ship_height"),
+        ({"building_depth": 9.0, "building_distance": 95.0}, "quay's end"),
+        ({"ship_body": "steel"}, "ship_body"),
+        ({"sea_length": 20.0}, "inflow boundary"),
+        ({"offshore_gauge": 70.0}, "offshore_gauge"),
+    ],
+)
+def test_bad_settings_are_refused_naming_them(settings, match):
+    with pytest.raises(ValueError, match=match):
+        jaxmps.scenes.tsunami_quay(**{**COARSE, **settings})
+
+
+def test_a_wave_above_the_inflow_boundary_is_refused_before_the_run():
+    """Params changed after building (a higher wave than the scene was built
+    for) cannot be fed by its boundary."""
+    import equinox as eqx
+
+    case = jaxmps.scenes.tsunami_quay(**COARSE)
+    higher = eqx.tree_at(
+        lambda p: p.inflow.depth, case.params, case.params.inflow.depth * 2
+    )
+    with pytest.raises(ValueError, match="inflow.depth"):
+        jaxmps.simulate(case.scene, higher, case.state, 2, 2)
+
+
+def test_the_wave_lifts_the_ship_onto_the_quay_and_the_inflow_balances():
+    """2-D at l0 = 1 m (8 m wave on a 12 m sea, quay 2 m above it): within 13 s
+    the ship is carried over the quay edge, its keel above the quay top, faster
+    than 4 m/s; until water reaches the outflow the fluid gained equals the
+    discharge fed, integrated (within 2 %)."""
+    case = jaxmps.scenes.tsunami_quay(**COARSE)
+    observe = jaxmps.scenes.observe_probes(case.probes)
+    times = np.arange(1, 14) * 1.0
+    run = jaxmps.simulate(
+        case.scene, case.params, case.state, times=times, observe=observe
+    )
+    saved = {k: np.asarray(v) for k, v in run.saved.items()}
+    c = case.config
+    edge, quay_top = c["quay_edge"], c["sea_depth"] + c["quay_crest"]
+    assert saved["ship_x"][-1] - 0.5 * c["ship_beam"] > edge
+    assert saved["ship_z"][-1] - 0.5 * c["ship_height"] > quay_top
+    assert saved["ship_u"].max() > 4.0
+    assert saved["quay_depth_1"][-1] > 2.0  # the quay is flooded
+    series = case.params.inflow
+    t = np.linspace(0.0, 13.0, 13001)
+    fed = np.interp(t, series.times, series.velocity) * np.interp(
+        t, series.times, series.depth
+    )
+    gained = saved["fluid_count"][-1] - int(
+        (case.state.active & (case.state.kind == int(jaxmps.Kind.FLUID))).sum()
+    )
+    assert gained == pytest.approx(np.trapezoid(fed, t), rel=0.02)
+
+
+def test_three_d_scene_feeds_the_channel_and_floats_the_ship():
+    """3-D: the inflow sheet spans the channel, feeds it, and nothing leaves the
+    channel sideways (a smoke run at l0 = 2 m, the wave rising over 3 s: in 2 s
+    the boundary travels 3.95 m, feeding one sheet)."""
+    case = jaxmps.scenes.tsunami_quay(**SMALL_3D, rise_time=3.0)
+    observe = jaxmps.scenes.observe_probes(case.probes)
+    run = jaxmps.simulate(
+        case.scene, case.params, case.state, times=[2.0], observe=observe
+    )
+    before = int((case.state.active & (case.state.kind == 0)).sum())
+    assert float(run.saved["fluid_count"][-1]) > before
+    fluid = np.asarray(run.state.active & (run.state.kind == 0))
+    y = np.asarray(run.state.position)[fluid, 1]
+    assert y.min() > 0 and y.max() < case.config["width"]
+    # The ship still floats near its draft (the wave has not reached it yet).
+    keel = float(run.saved["ship_z"][-1]) - 0.5 * case.config["ship_height"]
+    assert keel == pytest.approx(case.config["sea_depth"] - 4.0, abs=2.0)

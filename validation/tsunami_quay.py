@@ -1,0 +1,165 @@
+"""Seed 000's trends for a tsunami carrying an unmoored ship over a quay
+(`scenes.tsunami_quay`, 2-D cross-section, prototype scale), measured at the
+coarsest resolution that puts 8 particles across the light draft (l0 = 0.5 m).
+
+Groups (each a set of runs of the scene with its defaults except as listed):
+  height    tsunami height eta = 8.5 / 13.5 / 18.0 m (seed 000 §4.1: maximum drift
+            velocity 8.55 / 13.90 / 17.98 m/s grows with eta);
+  draft     drafts 4 and 7 m at eta = 13.5 m (seed Tables 4.2-3..5: heavier ships
+            reach their maximum velocity closer to the sea, i.e. after a shorter
+            displacement);
+  gap       ship-quay distance 2 m, 1.5 B and 2.5 B at eta = 13.5 m (seed §4.3: the
+            ship on the run-up front, at 2 m, drifts fastest);
+  building  a building 9 m deep, 38 m high, 40 m from the quay edge, hit by the
+            tsunami alone and with the ship (seed §5: the impulse with the ship
+            exceeds the tsunami-only impulse).
+
+Our geometry is not the seed's (its sea depth, quay crest and wave series are in
+figures only): the sea is 12 m deep, the quay 2 m above it, the wave a long wave
+rising over 10 s at the inflow 60 m seaward of the quay edge. The seed's numbers
+are reported beside ours for the trends, not as targets.
+
+A ship that reaches the quay's landward end falls off it and leaves the domain:
+the run stops there (its maximum velocity was reached before).
+
+Run: python validation/tsunami_quay.py [--groups height draft gap building]
+[--spacing 0.5] [--t-end 25] (writes results/tsunami_quay_cpu.{json,md}, merging
+groups run before).
+"""
+
+import argparse
+import json
+import time
+
+import numpy as np
+from _common import HERE, machine_info
+
+import jaxmps
+from jaxmps._result import result_name
+
+SEED_MAX_VELOCITY = {8.5: 8.55, 13.5: 13.90, 18.0: 17.98}  # m/s, seed 000 §4.1
+
+
+def runs(group: str) -> list[tuple[str, dict]]:
+    """(label, overrides) of a group."""
+    if group == "height":
+        return [(f"eta {eta}", dict(tsunami_height=eta)) for eta in (8.5, 13.5, 18.0)]
+    if group == "draft":
+        return [
+            (f"draft {d}", dict(tsunami_height=13.5, ship_draft=d)) for d in (4.0, 7.0)
+        ]
+    if group == "gap":
+        return [
+            (f"gap {name}", dict(tsunami_height=13.5, ship_gap=gap))
+            for name, gap in (("2 m", 2.0), ("1.5 B", 25.5), ("2.5 B", 42.5))
+        ]
+    if group == "building":
+        building = dict(tsunami_height=13.5, building_depth=9.0, quay_length=100.0)
+        return [
+            ("building, ship", building),
+            ("building, no ship", {**building, "ship": False}),
+        ]
+    raise ValueError(f"unknown group {group!r}")
+
+
+def measure(label: str, overrides: dict, spacing: float, t_end: float) -> dict:
+    """Run one case; its maximum drift velocity, where and when, and the
+    building's force peak and impulse."""
+    settings = dict(spacing=spacing, t_end=t_end, quay_length=150.0)
+    case = jaxmps.scenes.tsunami_quay(**{**settings, **overrides})
+    observe = jaxmps.scenes.observe_probes(case.probes)
+    times = np.arange(1, round(t_end / 0.1) + 1) * 0.1
+    start = time.perf_counter()
+    run = jaxmps.simulate(
+        case.scene, case.params, case.state, times=times, observe=observe, throw=False
+    )
+    wall = time.perf_counter() - start
+    saved = {k: np.asarray(v) for k, v in run.saved.items()}
+    ended = float(run.state.time)
+    keep = saved["time"] <= ended + 1e-9
+    saved = {k: v[keep] for k, v in saved.items()}
+    t = saved["time"]
+    u = saved.get("ship_u", np.zeros_like(t))
+    peak = int(np.argmax(u))
+    c = case.config
+    x0 = c["quay_edge"] - c["ship_gap"] - 0.5 * c["ship_beam"]
+    row = dict(
+        label=label,
+        overrides=overrides,
+        spacing=spacing,
+        result=result_name(run.result),
+        ended_s=ended,
+        steps=int(run.state.step),
+        wall_s=round(wall, 1),
+        particles=int(case.state.active.sum()),
+        max_fluid=int(saved["fluid_count"].max()),
+        max_drift_velocity=float(u[peak]),
+        time_of_max=float(t[peak]),
+        displacement_at_max=float(saved.get("ship_x", t + x0)[peak] - x0),
+        max_sea_level=float(saved["sea_level"].max()),
+        max_quay_depth_1=float(saved["quay_depth_1"].max()),
+        max_quay_u_1=float(saved["quay_u_1"].max()),
+    )
+    if "building_force" in saved:
+        force = saved["building_force"]
+        row["building_peak_force"] = float(force.max())
+        row["building_impulse"] = float(np.trapezoid(force, t))
+    return row
+
+
+def table(rows: list[dict]) -> str:
+    lines = [
+        "| case | max drift velocity [m/s] (seed) | at t [s] | displacement at max [m]"
+        " | building peak [kN/m] | impulse [kN s/m] | run to [s] | steps | wall [s] |",
+        "|---|---|---|---|---|---|---|---|---|",
+    ]
+    for r in rows:
+        eta = r["overrides"].get("tsunami_height")
+        seed = SEED_MAX_VELOCITY.get(eta) if r["label"].startswith("eta") else None
+        shown = f"{r['max_drift_velocity']:.2f}" + (f" ({seed})" if seed else "")
+        peak = r.get("building_peak_force")
+        impulse = r.get("building_impulse")
+        lines.append(
+            f"| {r['label']} | {shown} | {r['time_of_max']:.1f} | "
+            f"{r['displacement_at_max']:.1f} | "
+            f"{'' if peak is None else f'{peak / 1e3:.0f}'} | "
+            f"{'' if impulse is None else f'{impulse / 1e3:.0f}'} | "
+            f"{r['ended_s']:.1f} | {r['steps']} | {r['wall_s']:.0f} |"
+        )
+    return "\n".join(lines)
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--groups", nargs="+", default=["height", "draft"])
+    parser.add_argument("--spacing", type=float, default=0.5)
+    parser.add_argument("--t-end", type=float, default=25.0)
+    args = parser.parse_args()
+    path = HERE / "results" / "tsunami_quay_cpu"
+    old = []
+    if path.with_suffix(".json").exists():
+        old = json.loads(path.with_suffix(".json").read_text())["rows"]
+    rows = []
+    for group in args.groups:
+        for label, overrides in runs(group):
+            row = {
+                "group": group,
+                **measure(label, overrides, args.spacing, args.t_end),
+            }
+            print(json.dumps(row), flush=True)
+            rows.append(row)
+    done = {(r["label"], r["spacing"]) for r in rows}
+    rows = [r for r in old if (r["label"], r["spacing"]) not in done] + rows
+    info = machine_info()
+    path.with_suffix(".json").write_text(
+        json.dumps({"machine": info, "args": vars(args), "rows": rows}, indent=1)
+    )
+    path.with_suffix(".md").write_text(
+        "# Tsunami over a quay carrying a ship: seed 000's trends (2-D, prototype "
+        "scale)\n\n"
+        f"Machine: {info}\n\n" + table(rows) + "\n"
+    )
+
+
+if __name__ == "__main__":
+    main()
