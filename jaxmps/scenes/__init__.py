@@ -57,6 +57,7 @@ from ._probes import PressureLevel as PressureLevel
 from ._probes import RunUp as RunUp
 from ._probes import StripLevel as StripLevel
 from ._probes import WallForce as WallForce
+from ._probes import WallPressure as WallPressure
 from ._probes import WaterLevel as WaterLevel
 from ._probes import observe_probes as observe_probes
 from ._sloshing import SLOSHING_TANK as _SLOSHING_TANK

@@ -277,6 +277,9 @@ RULES = {
     "building_distance": _LENGTH,
     "gauge_spacing": _LENGTH,
     "offshore_gauge": _LENGTH,
+    "reservoir_length": _LENGTH,
+    "reservoir_depth": _LENGTH,
+    "pressure_spacing": _LENGTH,
     # angles [degrees] and slopes
     "angle": _ANGLE,
     "heel": _ANGLE,
@@ -289,6 +292,7 @@ RULES = {
     "fall_time": _POSITIVE,
     "scale": Range(0, 10, open_low=True),
     "gauges": Range(1, 64),
+    "pressure_gauges": Range(0, 64),
     "settle": _NON_NEGATIVE,
     "frequency": _NON_NEGATIVE,
     "wave_period": _POSITIVE,
@@ -359,6 +363,8 @@ _WHOLE = (
     "seed",
     "blocks",
     "block_rows",
+    "gauges",
+    "pressure_gauges",
 )
 
 

@@ -328,6 +328,27 @@ class WallForce(AbstractProbe):
         return jnp.sum(jnp.where(wall, excess, 0.0)) * area
 
 
+class WallPressure(AbstractProbe):
+    """Mean pressure [Pa] of the pressure-wall particles inside the box [`lower`,
+    `upper`] (a pressure gauge on a wall), less `dry` (see `WallForce`) and at
+    least zero; zero where the box holds none."""
+
+    name: str
+    lower: tuple[float, ...]
+    upper: tuple[float, ...]
+    dry: float = 0.0
+
+    def __call__(self, scene: Scene, state: State):
+        del scene
+        x = state.position
+        lower = jnp.asarray(self.lower, x.dtype)[None, :]
+        upper = jnp.asarray(self.upper, x.dtype)[None, :]
+        inside = jnp.all((x >= lower) & (x <= upper), axis=-1)
+        wall = state.active & (state.kind == int(Kind.WALL)) & inside
+        excess = jnp.maximum(state.pressure - self.dry, 0.0)
+        return jnp.sum(jnp.where(wall, excess, 0.0)) / jnp.maximum(jnp.sum(wall), 1)
+
+
 class RunUp(AbstractProbe):
     """Run-up on a slope rising 1 : `slope` from x = `toe` (tank frame): the highest
     fluid particle within `band` of the slope surface, above `still_depth` [m].

@@ -20,6 +20,7 @@ from ._probes import (
     FlowVelocity,
     FluidCount,
     WallForce,
+    WallPressure,
     WaterLevel,
 )
 
@@ -38,6 +39,11 @@ TSUNAMI_QUAY = {
     "rise_time": 10.0,
     "hold_time": 20.0,
     "fall_time": 10.0,
+    # Or a dam break (seed 000 §3.1's flume): a reservoir `reservoir_length` long
+    # behind a gate at the sea's seaward end, filled to `reservoir_depth` and
+    # released at t = 0 (no inflow then).
+    "reservoir_length": None,
+    "reservoir_depth": None,
     # The ship (seed 000 Table 5.1-1): broadside to the flow, `ship_gap` seaward
     # of the quay edge, floating at `ship_draft`.
     "ship_beam": 17.0,  # along the flow
@@ -56,6 +62,8 @@ TSUNAMI_QUAY = {
     "building_length": 30.0,  # along the quay (3-D)
     "building_height": 38.0,
     "building_distance": 40.0,  # its front face from the quay edge
+    "pressure_gauges": 3,  # on the building's front face, from its base up
+    "pressure_spacing": 2.0,  # their spacing (the lowest half of it up)
     "width": None,  # 3-D channel width (default: ship length + 2 beams)
     "gauge_spacing": 3.0,  # quay gauges every so far from the edge (seed: 3 m)
     "gauges": 4,
@@ -84,6 +92,9 @@ _LENGTHS = (
     "width",
     "gauge_spacing",
     "offshore_gauge",
+    "reservoir_length",
+    "reservoir_depth",
+    "pressure_spacing",
 )
 _TIMES = ("rise_time", "hold_time", "fall_time", "t_end")
 
@@ -122,25 +133,52 @@ def tsunami_quay(**overrides) -> Case:
     c = resolve("tsunami_quay", TSUNAMI_QUAY, overrides)
     g = _geometry(c)
     dim = int(c["dim"])
-    series = _series(c, g)
+    series = None if g["reservoir_length"] else _series(c, g)
     parts = _parts(c, g)
     position = np.concatenate([p for p, _ in parts.values()])
     kind = np.concatenate([k for _, k in parts.values()]).astype(np.int32)
-    n_sea, n_ship = len(parts["sea"][0]), len(parts["ship"][0])
-    first_inflow = len(position) - len(parts["inflow"][0])
-    capacity = len(position) + _pool(c, g, series)
-    scene = _body_scene(c, position, _domain(c, g), kind, capacity=capacity)
-    u_max = float(np.max(series.velocity))
-    speed = u_max + math.sqrt(c["gravity"] * (g["sea_depth"] + g["tsunami_height"]))
-    params = case_params(c, dim, speed)
+    pool = 0 if series is None else _pool(c, g, series)
+    scene = _body_scene(c, position, _domain(c, g), kind, capacity=len(position) + pool)
+    params = case_params(c, dim, _speed(c, g, series))
     state = make_state(scene, position, kind)
     body = np.full(len(position), -1)
+    n_sea, n_ship = len(parts["sea"][0]), len(parts["ship"][0])
     body[n_sea : n_sea + n_ship] = 0
     density = c["density"] * g["ship_draft"] / g["ship_height"]
-    if not c["ship"]:
-        pass
-    elif c["ship_body"] == "rigid":
-        scene, params, state = add_rigid_bodies(
+    if c["ship"]:
+        scene, params, state = _add_ship(c, scene, params, state, body, density)
+    end = g["sea_length"] + g["quay_length"]
+    scene = eqx.tree_at(
+        lambda s: s.outflow, scene, Outflow(position=end), is_leaf=lambda x: x is None
+    )
+    if series is not None:
+        _, _, inflow = _inflow(c, g, len(position) - len(parts["inflow"][0]))
+        scene = eqx.tree_at(
+            lambda s: s.inflow, scene, inflow, is_leaf=lambda x: x is None
+        )
+        params = eqx.tree_at(
+            lambda p: p.inflow, params, series, is_leaf=lambda x: x is None
+        )
+    config = {**c, **g, "ship_density": density, "quay_edge": g["sea_length"]}
+    dry = getattr(scene.solver, "surface_head", 0.0) * c["density"] * c["gravity"]
+    probes = _probes(c, g, dry * c["spacing"])
+    return Case("tsunami_quay", scene, params, state, probes, g["t_end"], config)
+
+
+def _speed(c: dict, g: dict, series: InflowParams | None) -> float:
+    """The velocity scale of the largest step: the wave's speed at the inflow plus
+    its celerity, or the dam break's front speed 2 sqrt(g H)."""
+    grav = c["gravity"]
+    if series is None:
+        return 2.0 * math.sqrt(grav * g["reservoir_depth"])
+    u_max = float(np.max(series.velocity))
+    return u_max + math.sqrt(grav * (g["sea_depth"] + g["tsunami_height"]))
+
+
+def _add_ship(c: dict, scene, params, state, body, density: float):
+    """The ship as a rigid body (with friction) or an elastic one."""
+    if c["ship_body"] == "rigid":
+        return add_rigid_bodies(
             scene,
             params,
             state,
@@ -149,32 +187,15 @@ def tsunami_quay(**overrides) -> Case:
             mu_static=c["mu_static"],
             mu_kinetic=c["mu_kinetic"],
         )
-    else:
-        scene, params, state = add_elastic_bodies(
-            scene,
-            params,
-            state,
-            body,
-            youngs_modulus=c["youngs_modulus"],
-            poisson_ratio=c["poisson_ratio"],
-            density=density,
-        )
-    _, _, inflow = _inflow(c, g, first_inflow)
-    end = g["sea_length"] + g["quay_length"]
-    scene = eqx.tree_at(
-        lambda s: (s.inflow, s.outflow),
+    return add_elastic_bodies(
         scene,
-        (inflow, Outflow(position=end)),
-        is_leaf=lambda x: x is None,
+        params,
+        state,
+        body,
+        youngs_modulus=c["youngs_modulus"],
+        poisson_ratio=c["poisson_ratio"],
+        density=density,
     )
-    params = eqx.tree_at(
-        lambda p: p.inflow, params, series, is_leaf=lambda x: x is None
-    )
-    config = {**c, **g, "ship_density": density, "quay_edge": g["sea_length"]}
-    t_end = g["t_end"]
-    dry = getattr(scene.solver, "surface_head", 0.0) * c["density"] * c["gravity"]
-    probes = _probes(c, g, dry * c["spacing"])
-    return Case("tsunami_quay", scene, params, state, probes, t_end, config)
 
 
 def _geometry(c: dict) -> dict:
@@ -189,6 +210,16 @@ def _geometry(c: dict) -> dict:
     for key in _LENGTHS:
         g[key] = None if c[key] is None else whole(float(c[key]) * s, l0)
     g["tsunami_height"] = float(c["tsunami_height"]) * s
+    if (c["reservoir_length"] is None) != (c["reservoir_depth"] is None):
+        raise ValueError(
+            "A dam break needs both reservoir_length and reservoir_depth (or "
+            "neither, for the inflow's wave)."
+        )
+    if g["reservoir_length"] is not None:
+        if not g["reservoir_depth"] > g["sea_depth"]:
+            raise ValueError("reservoir_depth must exceed sea_depth (a dam break).")
+        # The walls' height follows the bore: the reservoir's head over the sea.
+        g["tsunami_height"] = g["reservoir_depth"] - g["sea_depth"]
     for key in _TIMES:
         g[key] = float(c[key]) * math.sqrt(s)
     if g["width"] is None:
@@ -200,6 +231,31 @@ def _geometry(c: dict) -> dict:
 def _check_geometry(c: dict, g: dict) -> None:
     """ValueError naming the setting when the parts overlap or leave the scene."""
     l0, dim = c["spacing"], int(c["dim"])
+    if c["ship"]:
+        _check_ship(c, g)
+    if not 0 < g["offshore_gauge"] < g["sea_length"]:
+        raise ValueError("offshore_gauge must lie in the sea (below sea_length).")
+    if int(c["gauges"]) * g["gauge_spacing"] >= g["quay_length"]:
+        raise ValueError("The quay gauges run past quay_length; fewer `gauges`.")
+    if g["building_depth"] is None:
+        return
+    if g["building_distance"] + g["building_depth"] > g["quay_length"] - 2 * l0:
+        raise ValueError(
+            "The building stands past the quay's end; lower building_distance or "
+            "lengthen quay_length."
+        )
+    if dim == 3 and g["building_length"] > g["width"]:
+        raise ValueError("building_length does not fit in `width`.")
+    if int(c["pressure_gauges"]) * g["pressure_spacing"] > g["building_height"]:
+        raise ValueError(
+            "The pressure gauges run above the building; fewer `pressure_gauges` or "
+            "a smaller pressure_spacing."
+        )
+
+
+def _check_ship(c: dict, g: dict) -> None:
+    """ValueError naming the setting when the ship cannot float where it is put."""
+    l0 = c["spacing"]
     if not g["ship_draft"] < g["ship_height"]:
         raise ValueError("ship_draft must be below ship_height (the ship would sink).")
     if not g["ship_draft"] < g["sea_depth"]:
@@ -216,21 +272,8 @@ def _check_geometry(c: dict, g: dict) -> None:
             "The ship reaches the inflow boundary; lengthen sea_length or shorten "
             "ship_gap / ship_beam."
         )
-    if not 0 < g["offshore_gauge"] < g["sea_length"]:
-        raise ValueError("offshore_gauge must lie in the sea (below sea_length).")
-    if int(c["gauges"]) * g["gauge_spacing"] >= g["quay_length"]:
-        raise ValueError("The quay gauges run past quay_length; fewer `gauges`.")
-    if dim == 3 and g["ship_length"] + 2 * l0 > g["width"]:
+    if int(c["dim"]) == 3 and g["ship_length"] + 2 * l0 > g["width"]:
         raise ValueError("ship_length does not fit in `width`; widen the channel.")
-    if g["building_depth"] is None:
-        return
-    if g["building_distance"] + g["building_depth"] > g["quay_length"] - 2 * l0:
-        raise ValueError(
-            "The building stands past the quay's end; lower building_distance or "
-            "lengthen quay_length."
-        )
-    if dim == 3 and g["building_length"] > g["width"]:
-        raise ValueError("building_length does not fit in `width`.")
 
 
 def _series(c: dict, g: dict) -> InflowParams:
@@ -280,9 +323,10 @@ def _across(g: dict, dim: int, length: float, l0: float) -> tuple[list, list]:
 
 
 def _parts(c: dict, g: dict) -> dict:
-    """Each group of particles with its kinds, in the state's order: the sea, the
-    ship, the bed, quay and side walls, the building, the wall above the inflow
-    and the inflow boundary (last)."""
+    """Each group of particles with its kinds, in the state's order: the sea (and
+    the reservoir), the ship, the bed, quay and side walls, the building, and
+    for the inflow's wave the wall above the inflow and the inflow boundary
+    (last)."""
     l0, dim = c["spacing"], int(c["dim"])
     h, edge = g["sea_depth"], g["sea_length"]
     wide = [0.0] if dim == 3 else []
@@ -297,6 +341,13 @@ def _parts(c: dict, g: dict) -> dict:
         ship = ship[:0]
     sea = geometry.block([0.0] + wide + [0.0], [edge] + width + [h], l0)
     sea = geometry.remove_overlaps(sea, ship, 0.99 * l0)
+    if g["reservoir_length"] is not None:
+        reservoir = geometry.block(
+            [-g["reservoir_length"]] + wide + [0.0],
+            [0.0] + width + [g["reservoir_depth"]],
+            l0,
+        )
+        sea = np.concatenate([reservoir, sea])
     parts = {
         "sea": (sea, np.full(len(sea), int(Kind.FLUID))),
         "ship": (ship, np.full(len(ship), int(Kind.FLUID))),
@@ -304,6 +355,8 @@ def _parts(c: dict, g: dict) -> dict:
     }
     if g["building_depth"] is not None:
         parts["building"] = _building(c, g)
+    if g["reservoir_length"] is not None:
+        return parts
     top_in, layers = _inflow_top(g, l0), boundary_layers(c)
     head = geometry.block(
         [-layers * l0] + wide + [top_in], [0.0] + width + [_top(g, l0)], l0
@@ -325,20 +378,29 @@ def _inflow(c: dict, g: dict, first: int):
 
 
 def _solid(c: dict, g: dict):
-    """The bed, the quay and (3-D) the side walls, `layers` deep below the wetted
-    surfaces: pressure walls in the first layer, dummies behind, the quay's
-    interior left out."""
+    """The bed, the quay, the reservoir's back wall and (3-D) the side walls,
+    `layers` deep below the wetted surfaces: pressure walls in the first layer,
+    dummies behind, the quay's interior left out."""
     l0, dim, layers = c["spacing"], int(c["dim"]), boundary_layers(c)
     edge, quay_top = g["sea_length"], g["sea_depth"] + g["quay_crest"]
     end = edge + g["quay_length"]
-    low, high = [-(layers + 2) * l0], [end]
+    if g["reservoir_length"] is None:
+        back, start = -np.inf, -(layers + 2) * l0  # the bed runs under the inflow
+    else:
+        back = -g["reservoir_length"]
+        start = back - layers * l0
+    low, high = [start], [end]
     if dim == 3:
         low, high = low + [-layers * l0], high + [g["width"] + layers * l0]
     box = geometry.block(low + [-layers * l0], high + [_top(g, l0)], l0)
     x, z = box[:, 0], box[:, -1]
-    # Distance to the wetted region: the sea (x < edge, z > 0) or above the quay.
-    to_sea = np.hypot(np.maximum(x - edge, 0.0), np.maximum(-z, 0.0))
-    to_land = np.maximum(quay_top - z, 0.0)
+    # Distance to the wetted region: the sea (back < x < edge, z > 0) or above the
+    # quay (x > back).
+    behind = np.maximum(back - x, 0.0)
+    to_sea = np.hypot(
+        np.maximum(np.maximum(x - edge, 0.0), behind), np.maximum(-z, 0.0)
+    )
+    to_land = np.hypot(np.maximum(quay_top - z, 0.0), behind)
     distance = np.minimum(to_sea, to_land)
     if dim == 3:
         y = box[:, 1]
@@ -389,7 +451,8 @@ def _domain(c: dict, g: dict):
     margin = (boundary_layers(c) + 3) * l0
     end = g["sea_length"] + g["quay_length"]
     top = _top(g, l0)
-    lower = [-margin] + ([-margin] if dim == 3 else []) + [-margin]
+    start = -margin - (g["reservoir_length"] or 0.0)
+    lower = [start] + ([-margin] if dim == 3 else []) + [-margin]
     upper = [end + margin] + ([g["width"] + margin] if dim == 3 else [])
     highest = top
     if g["building_depth"] is not None:
@@ -442,4 +505,18 @@ def _probes(c: dict, g: dict, dry: float) -> tuple:
         l0,
         dry,
     )
-    return (*probes, force)
+    pressures = []
+    for k in range(1, int(c["pressure_gauges"]) + 1):
+        z = quay_top + (k - 0.5) * g["pressure_spacing"]
+        mid = [0.5 * (lo[0] + hi[0])] if dim == 3 else []
+        pressures.append(
+            WallPressure(
+                f"building_pressure_{k}",
+                tuple(
+                    [front - 0.25 * l0] + [m - 0.5 * l0 for m in mid] + [z - 0.5 * l0]
+                ),
+                tuple([front + l0] + [m + 0.5 * l0 for m in mid] + [z + 0.5 * l0]),
+                dry,
+            )
+        )
+    return (*probes, force, *pressures)
