@@ -65,6 +65,9 @@ def test_the_pool_holds_what_the_wave_brings():
         ({"ship_body": "steel"}, "ship_body"),
         ({"sea_length": 20.0}, "inflow boundary"),
         ({"offshore_gauge": 70.0}, "offshore_gauge"),
+        ({"reservoir_length": 50.0}, "reservoir_depth"),
+        ({"reservoir_length": 50.0, "reservoir_depth": 10.0}, "exceed sea_depth"),
+        ({"building_depth": 9.0, "pressure_gauges": 20}, "pressure_gauges"),
     ],
 )
 def test_bad_settings_are_refused_naming_them(settings, match):
@@ -131,3 +134,42 @@ def test_three_d_scene_feeds_the_channel_and_floats_the_ship():
     # The ship still floats near its draft (the wave has not reached it yet).
     keel = float(run.saved["ship_z"][-1]) - 0.5 * case.config["ship_height"]
     assert keel == pytest.approx(case.config["sea_depth"] - 4.0, abs=2.0)
+
+
+def test_dam_break_variant_builds_the_reservoir_and_its_gauges_read_dry_as_zero():
+    """With a reservoir the wave is a dam break: no inflow, the reservoir's water
+    behind the gate, and the building's gauges read zero while it is dry (the
+    dry walls' own pressure discounted)."""
+    flume = dict(
+        sea_length=4.5,
+        sea_depth=0.2,
+        quay_crest=0.02,
+        quay_length=1.5,
+        ship=False,
+        building_depth=0.12,
+        building_height=0.4,
+        building_distance=0.12,
+        pressure_spacing=0.02,
+        reservoir_length=1.0,
+        reservoir_depth=0.5,
+        offshore_gauge=1.0,
+        gauge_spacing=0.06,
+        gauges=1,
+        spacing=0.04,
+    )
+    case = jaxmps.scenes.tsunami_quay(**flume)
+    assert case.scene.inflow is None and case.params.inflow is None
+    fluid = np.asarray(case.state.kind == int(jaxmps.Kind.FLUID)) & np.asarray(
+        case.state.active
+    )
+    x = np.asarray(case.state.position)[fluid, 0]
+    c = case.config  # lengths on the lattice (0.5 m is 12 rows of 4 cm)
+    assert int(np.sum(x < 0)) == round(
+        c["reservoir_length"] * c["reservoir_depth"] / 0.04**2
+    )
+    assert int(np.sum(x > 0)) == round(c["sea_length"] * c["sea_depth"] / 0.04**2)
+    observe = jaxmps.scenes.observe_probes(case.probes)
+    run = jaxmps.simulate(case.scene, case.params, case.state, 5, 5, observe)
+    for k in (1, 2, 3):
+        assert float(run.saved[f"building_pressure_{k}"][-1]) == 0.0
+    assert float(run.saved["building_force"][-1]) == 0.0
