@@ -152,7 +152,7 @@ def main():
     rows, histories = [], []
     for position in args.positions:
         row, series = measure(
-            position, args.spacing, args.t_end, args.save, args.smooth
+            position, args.spacing, args.t_end, args.save, args.smooth, args.scheme
         )
         print(json.dumps(row), flush=True)
         rows.append(row)
