@@ -23,8 +23,9 @@ A ship that reaches the quay's landward end falls off it and leaves the domain:
 the run stops there (its maximum velocity was reached before).
 
 Run: python validation/tsunami_quay.py [--groups height draft gap building]
-[--spacing 0.5] [--t-end 25] (writes results/tsunami_quay_cpu.{json,md}, merging
-groups run before).
+[--spacing 0.5] [--t-end 25] [--fresh] (writes results/tsunami_quay_cpu.{json,md}
+after each run, merging rows run before; runs already there with the same
+settings are reused unless --fresh).
 """
 
 import argparse
@@ -87,6 +88,7 @@ def measure(label: str, overrides: dict, spacing: float, t_end: float) -> dict:
         label=label,
         overrides=overrides,
         spacing=spacing,
+        t_end=t_end,
         result=result_name(run.result),
         ended_s=ended,
         steps=int(run.state.step),
@@ -134,20 +136,36 @@ def main():
     parser.add_argument("--groups", nargs="+", default=["height", "draft"])
     parser.add_argument("--spacing", type=float, default=0.5)
     parser.add_argument("--t-end", type=float, default=25.0)
+    parser.add_argument("--fresh", action="store_true")
     args = parser.parse_args()
     path = HERE / "results" / "tsunami_quay_cpu"
     old = []
     if path.with_suffix(".json").exists():
         old = json.loads(path.with_suffix(".json").read_text())["rows"]
     rows = []
+    # Runs already in the file at this spacing and end time are reused (--fresh:
+    # run them again).
+    measured = {
+        json.dumps(r["overrides"], sort_keys=True): r
+        for r in old
+        if r["spacing"] == args.spacing
+        and r.get("t_end") == args.t_end
+        and not args.fresh
+    }
     for group in args.groups:
         for label, overrides in runs(group):
-            row = {
-                "group": group,
-                **measure(label, overrides, args.spacing, args.t_end),
-            }
+            # A run another group already made (the same settings) is reused.
+            key = json.dumps(overrides, sort_keys=True)
+            if key not in measured:
+                measured[key] = measure(label, overrides, args.spacing, args.t_end)
+            row = {**measured[key], "group": group, "label": label}
             print(json.dumps(row), flush=True)
             rows.append(row)
+            write(path, old, rows, args)
+
+
+def write(path, old: list[dict], rows: list[dict], args) -> None:
+    """The results so far, merged with the file's rows not re-measured."""
     done = {(r["label"], r["spacing"]) for r in rows}
     rows = [r for r in old if (r["label"], r["spacing"]) not in done] + rows
     info = machine_info()
