@@ -173,3 +173,17 @@ def test_dam_break_variant_builds_the_reservoir_and_its_gauges_read_dry_as_zero(
     for k in (1, 2, 3):
         assert float(run.saved[f"building_pressure_{k}"][-1]) == 0.0
     assert float(run.saved["building_force"][-1]) == 0.0
+
+
+def test_elastic_ship_floats_at_its_draft_under_the_coupling_step_limit():
+    """`ship_body="elastic"`: the largest step is cut to the elastic coupling
+    limit (0.5 l0 / c_s) so the case runs as built, and the ship floats with
+    its centre at the still-water level (draft 4 m of 8 m) within l0/4."""
+    case = jaxmps.scenes.tsunami_quay(**COARSE, ship_body="elastic")
+    c_s = jaxmps.bodies.shear_speed(1.7e7, 0.3, case.config["ship_density"])
+    assert float(case.params.dt) <= 0.5 * 1.0 / c_s
+    observe = jaxmps.scenes.observe_probes(case.probes)
+    run = jaxmps.simulate(
+        case.scene, case.params, case.state, times=[0.5], observe=observe
+    )
+    assert float(run.saved["ship_z"][-1]) == pytest.approx(12.0, abs=0.25)
