@@ -92,10 +92,6 @@ def measure(position, spacing, t_end, save, width, scheme):
     wall = time.perf_counter() - start
     saved = {k: np.asarray(v) for k, v in run.saved.items()}
     t = saved["time"]
-    n = max(1, round(width / save))
-    gauges = {f"H{k}": smooth(saved[f"building_pressure_{k}"], n) for k in (1, 2, 3)}
-    level = 0.3 * np.percentile(gauges["H1"], 99)
-    arrival = float(t[np.argmax(gauges["H1"] > level)])
     row = dict(
         position=position,
         spacing=spacing,
@@ -104,20 +100,49 @@ def measure(position, spacing, t_end, save, width, scheme):
         steps=int(run.state.step),
         wall_s=round(wall, 1),
         particles=int(case.state.active.sum()),
-        arrival=arrival,
         max_sea_level=float(saved["sea_level"].max()),
         max_force=float(saved["building_force"].max()),
         impulse=float(np.trapezoid(saved["building_force"], t)),
+        smooth_s=width,
     )
+    raw = {f"H{k}": saved[f"building_pressure_{k}"] for k in (1, 2, 3)}
+    row.update(analyse(t, raw, save, width))
+    series = {"time": t.tolist()}
+    for k in (1, 2, 3):
+        series[f"H{k}"] = saved[f"building_pressure_{k}"].tolist()
+    return row, series
+
+
+def analyse(t: np.ndarray, raw: dict, save: float, width: float) -> dict:
+    """The arrival, the three gauges' peaks and whether H3 < H1, H2 at the first
+    peak, from the histories `raw` {"H1": ..., "H2": ..., "H3": ...}."""
+    n = max(1, round(width / save))
+    gauges = {name: smooth(np.asarray(p), n) for name, p in raw.items()}
+    level = 0.3 * np.percentile(gauges["H1"], 99)
+    arrival = float(t[np.argmax(gauges["H1"] > level)])
+    row = {"arrival": arrival}
     for name, p in gauges.items():
         row[name] = peaks(t, p, arrival)
     row["H3_below_H1_H2_first"] = bool(
         row["H3"]["first"] < min(row["H1"]["first"], row["H2"]["first"])
     )
-    series = {"time": t.tolist()}
-    for k in (1, 2, 3):
-        series[f"H{k}"] = saved[f"building_pressure_{k}"].tolist()
-    return row, series
+    return row
+
+
+def reanalyse(path, save: float, width: float) -> None:
+    """Recompute the rows of a results file from its stored histories."""
+    data = json.loads(path.read_text())
+    for row, series in zip(data["rows"], data["series"]):
+        t = np.asarray(series["time"])
+        row.update(analyse(t, {k: series[k] for k in ("H1", "H2", "H3")}, save, width))
+        row["smooth_s"] = width
+    path.write_text(json.dumps(data))
+    note = data.get("note", "")
+    path.with_suffix(".md").write_text(
+        "# Dam-break bore on a building on a quay (seed 000 §3.1): pressure "
+        "features\n\n"
+        f"Machine: {data['machine']}\n\n{note}\n\n" + table(data["rows"]) + "\n"
+    )
 
 
 def table(rows: list[dict]) -> str:
@@ -154,7 +179,14 @@ def main():
     parser.add_argument("--smooth", type=float, default=0.02)
     parser.add_argument("--positions", type=float, nargs="+", default=[0.12])
     parser.add_argument("--scheme", default="standard")
+    parser.add_argument(
+        "--reanalyse", action="store_true", help="recompute the rows from the file"
+    )
     args = parser.parse_args()
+    path = HERE / "results" / "runup_flume_cpu"
+    if args.reanalyse:
+        reanalyse(path.with_suffix(".json"), args.save, args.smooth)
+        return
     rows, histories = [], []
     for position in args.positions:
         row, series = measure(
@@ -164,7 +196,6 @@ def main():
         rows.append(row)
         histories.append(series)
     info = machine_info()
-    path = HERE / "results" / "runup_flume_cpu"
     path.with_suffix(".json").write_text(
         json.dumps(
             {"machine": info, "args": vars(args), "rows": rows, "series": histories}

@@ -137,8 +137,9 @@ def main():
     parser.add_argument("--spacing", type=float, default=0.5)
     parser.add_argument("--t-end", type=float, default=25.0)
     parser.add_argument("--fresh", action="store_true")
+    parser.add_argument("--out", default="tsunami_quay_cpu", help="results name")
     args = parser.parse_args()
-    path = HERE / "results" / "tsunami_quay_cpu"
+    path = HERE / "results" / args.out
     old = []
     if path.with_suffix(".json").exists():
         old = json.loads(path.with_suffix(".json").read_text())["rows"]
