@@ -39,6 +39,7 @@ import jaxmps
 from jaxmps._result import result_name
 
 SEED_MAX_VELOCITY = {8.5: 8.55, 13.5: 13.90, 18.0: 17.98}  # m/s, seed 000 §4.1
+AT_QUAY = 40.0  # m landward of the quay edge: where `u_at_quay` is read
 
 
 def runs(group: str) -> list[tuple[str, dict]]:
@@ -97,11 +98,27 @@ def measure(label: str, overrides: dict, spacing: float, t_end: float) -> dict:
         max_fluid=int(saved["fluid_count"].max()),
         max_drift_velocity=float(u[peak]),
         time_of_max=float(t[peak]),
+        # The maximum is the run's last sample when the ship was still speeding
+        # up as it left the quay's end.
+        max_at_end=bool(peak == len(t) - 1),
         displacement_at_max=float(saved.get("ship_x", t + x0)[peak] - x0),
         max_sea_level=float(saved["sea_level"].max()),
         max_quay_depth_1=float(saved["quay_depth_1"].max()),
         max_quay_u_1=float(saved["quay_u_1"].max()),
     )
+    if "ship_x" in saved:
+        # Comparable across cases whatever ends the run: the ship's velocity as
+        # its centre passes AT_QUAY metres landward of the quay edge.
+        onto = saved["ship_x"] - c["quay_edge"]
+        passed = np.flatnonzero(onto >= AT_QUAY)
+        if passed.size:
+            row["u_at_quay"] = float(u[passed[0]])
+            row["t_at_quay"] = float(t[passed[0]])
+        row["series"] = {
+            "time": t.tolist(),
+            "ship_x": saved["ship_x"].tolist(),
+            "ship_u": u.tolist(),
+        }
     if "building_force" in saved:
         force = saved["building_force"]
         row["building_peak_force"] = float(force.max())
@@ -111,19 +128,24 @@ def measure(label: str, overrides: dict, spacing: float, t_end: float) -> dict:
 
 def table(rows: list[dict]) -> str:
     lines = [
-        "| case | max drift velocity [m/s] (seed) | at t [s] | displacement at max [m]"
-        " | building peak [kN/m] | impulse [kN s/m] | run to [s] | steps | wall [s] |",
-        "|---|---|---|---|---|---|---|---|---|",
+        "| case | l0 [m] | max drift velocity [m/s] (seed) | at t [s] |"
+        " displacement at max [m] | u 40 m onto the quay [m/s] (at t [s]) |"
+        " building peak [kN/m] | impulse [kN s/m] | run to [s] | steps | wall [s] |",
+        "|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for r in rows:
         eta = r["overrides"].get("tsunami_height")
         seed = SEED_MAX_VELOCITY.get(eta) if r["label"].startswith("eta") else None
         shown = f"{r['max_drift_velocity']:.2f}" + (f" ({seed})" if seed else "")
+        if r.get("max_at_end") or r["time_of_max"] >= r["ended_s"] - 0.1:
+            shown += ", still rising at the quay's end"
+        at = r.get("u_at_quay")
+        at = "" if at is None else f"{at:.2f} ({r['t_at_quay']:.1f})"
         peak = r.get("building_peak_force")
         impulse = r.get("building_impulse")
         lines.append(
-            f"| {r['label']} | {shown} | {r['time_of_max']:.1f} | "
-            f"{r['displacement_at_max']:.1f} | "
+            f"| {r['label']} | {r['spacing']} | {shown} | {r['time_of_max']:.1f} | "
+            f"{r['displacement_at_max']:.1f} | {at} | "
             f"{'' if peak is None else f'{peak / 1e3:.0f}'} | "
             f"{'' if impulse is None else f'{impulse / 1e3:.0f}'} | "
             f"{r['ended_s']:.1f} | {r['steps']} | {r['wall_s']:.0f} |"
