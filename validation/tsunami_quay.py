@@ -8,8 +8,9 @@ Groups (each a set of runs of the scene with its defaults except as listed):
   draft     drafts 4 and 7 m at eta = 13.5 m (seed Tables 4.2-3..5: heavier ships
             reach their maximum velocity closer to the sea, i.e. after a shorter
             displacement);
-  gap       ship-quay distance 2 m, 1.5 B and 2.5 B at eta = 13.5 m (seed §4.3: the
-            ship on the run-up front, at 2 m, drifts fastest);
+  gap       ship-quay distance 2 m, 1.5 B and 2.5 B at eta = 13.5 m, on a sea 90 m
+            long (seed §4.3: the ship on the run-up front, at 2 m, drifts
+            fastest);
   building  a building 9 m deep, 38 m high, 40 m from the quay edge, hit by the
             tsunami alone and with the ship (seed §5: the impulse with the ship
             exceeds the tsunami-only impulse).
@@ -51,8 +52,9 @@ def runs(group: str) -> list[tuple[str, dict]]:
             (f"draft {d}", dict(tsunami_height=13.5, ship_draft=d)) for d in (4.0, 7.0)
         ]
     if group == "gap":
+        # A sea 90 m long, so that the ship fits at 2.5 B off the quay.
         return [
-            (f"gap {name}", dict(tsunami_height=13.5, ship_gap=gap))
+            (f"gap {name}", dict(tsunami_height=13.5, ship_gap=gap, sea_length=90.0))
             for name, gap in (("2 m", 2.0), ("1.5 B", 25.5), ("2.5 B", 42.5))
         ]
     if group == "building":
