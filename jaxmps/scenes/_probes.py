@@ -295,6 +295,15 @@ class BodyValue(AbstractProbe):
         return value[self.axis]
 
 
+def _walls_in_box(state: State, lower, upper):
+    """The active pressure-wall particles inside the box [lower, upper]."""
+    x = state.position
+    low = jnp.asarray(lower, x.dtype)[None, :]
+    high = jnp.asarray(upper, x.dtype)[None, :]
+    inside = jnp.all((x >= low) & (x <= high), axis=-1)
+    return state.active & (state.kind == int(Kind.WALL)) & inside
+
+
 class WallForce(AbstractProbe):
     """Pressure force [N, or N/m in 2-D] on the pressure-wall particles inside the box
     [`lower`, `upper`]: the sum of P_i l0^(d-1) (seed 000: the collision force is the
@@ -316,12 +325,8 @@ class WallForce(AbstractProbe):
 
     def __call__(self, scene: Scene, state: State):
         del scene
-        x = state.position
-        lower = jnp.asarray(self.lower, x.dtype)[None, :]
-        upper = jnp.asarray(self.upper, x.dtype)[None, :]
-        inside = jnp.all((x >= lower) & (x <= upper), axis=-1)
-        wall = state.active & (state.kind == int(Kind.WALL)) & inside
-        area = self.spacing ** (x.shape[-1] - 1)
+        wall = _walls_in_box(state, self.lower, self.upper)
+        area = self.spacing ** (state.position.shape[-1] - 1)
         excess = (
             jnp.maximum(state.pressure - self.dry, 0.0) if self.dry else state.pressure
         )
@@ -340,11 +345,7 @@ class WallPressure(AbstractProbe):
 
     def __call__(self, scene: Scene, state: State):
         del scene
-        x = state.position
-        lower = jnp.asarray(self.lower, x.dtype)[None, :]
-        upper = jnp.asarray(self.upper, x.dtype)[None, :]
-        inside = jnp.all((x >= lower) & (x <= upper), axis=-1)
-        wall = state.active & (state.kind == int(Kind.WALL)) & inside
+        wall = _walls_in_box(state, self.lower, self.upper)
         excess = jnp.maximum(state.pressure - self.dry, 0.0)
         return jnp.sum(jnp.where(wall, excess, 0.0)) / jnp.maximum(jnp.sum(wall), 1)
 
