@@ -18,7 +18,7 @@ from .neighbours import Grid, candidate_counts
 from .operators import Discretisation, lattice_offsets, reference_constants
 
 # Choice: the default skin of the neighbour lists, in units of l0 (see make_scene).
-NEIGHBOUR_SKIN = 0.12
+NEIGHBOUR_SKIN = 0.3
 # Choice: the share of the elastic step limit a sub-step takes by default (the
 # share adaptive steps take of the hard limits, `Adaptive.stability`).
 # Choice: default sub-steps at a quarter of the sub-step limit. Measured: a dense
@@ -59,18 +59,23 @@ def make_scene(
         capacity: particle slots (>= m); the extra slots form the inactive pool.
         neighbour_margin: `max_neighbours` = ceil(margin x lattice neighbour count).
         candidate_margin: `candidate_capacity` = ceil(margin x the most particles
-            in the stencil cells of one particle, initially).
+            in the stencil cells of one particle, initially or in a filled
+            regular lattice, whichever is more).
         max_neighbours, candidate_capacity: explicit values override the margins.
         reach: the neighbour grid's cells have edge r_e / reach and the stencil
             reaches `reach` cells each way (2, the default, tests about 3x the
             neighbour count as candidates in 2-D; 1 about 4x).
         neighbour_skin: in units of l0; the lists are searched within r_e + skin
-            so that `simulate` can carry those of one step's predicted positions to
-            the start of the next (`Scene.neighbour_skin`). 0.12 keeps the regular
-            lattice's neighbour count (the next lattice distance is sqrt(5) l0 =
-            2.236 l0 > 2.1 + 0.12) and is rarely exceeded: the pressure correction
-            moved particles by at most 0.04 l0 (explicit) and 0.17 l0 (semi-implicit,
-            1 % of the steps beyond 0.06 l0) in the 2-D dam break at l0 = 7.3 mm.
+            so that `simulate` can carry them from search to search until some
+            particle has moved by half the skin (`Scene.neighbour_skin`). Where
+            the skin's pairs do not fit in `max_neighbours` slots, a search lists
+            those within r_e only and the next one searches again. 0.3 holds the
+            regular lattice's pairs within 2.4 l0 (20 in 2-D, 56 in 3-D, within the
+            default 24 and 64 slots) and carries the lists over the 0.1 l0 a fast
+            particle moves in an explicit step (2-D dam break, 25k particles,
+            float64: 22.3 -> 8.8 ms per step over the first 200 steps, 26.3 ->
+            16.3 ms at 0.22 s; 0.12 l0 gave 10.5 and 27.5 ms; benchmarks/NOTES.md
+            §13).
         courant_limit, viscous_limit: stability limits checked every step (see
             `Scene`); `viscous_limit=math.inf` switches the viscous check off.
         escape_limit: fluid particles that may leave the domain and be taken
@@ -103,6 +108,7 @@ def make_scene(
     grid = _grid(position, domain, discretisation.r_e + skin, reach)
     if candidate_capacity is None:
         most = int(candidate_counts(grid, position).max()) if len(position) else 1
+        most = max(most, _filled_stencil(grid, spacing))
         candidate_capacity = max(2, math.ceil(candidate_margin * most))
     grid = eqx.tree_at(lambda g: g.candidate_capacity, grid, int(candidate_capacity))
     if max_neighbours is None:
@@ -125,6 +131,19 @@ def make_scene(
         time_step=time_step,
         escape_limit=int(escape_limit),
     )
+
+
+def _filled_stencil(grid: Grid, spacing: float) -> int:
+    """The most particles of a regular lattice of `spacing` in the stencil cells of
+    one particle: what fluid brings where it flows into a part of the domain that
+    starts empty or holds walls only (a dry bed fed by an inflow, a splash).
+
+    Choice: candidates are sized for the larger of this and the initial state's
+    count. Measured: a flume fed over a dry bed (l0 = 7.5 mm) started with at most
+    27 candidates (the bed's walls) and reached 42 once water ran over the bed,
+    beyond 1.5 x 27; a filled lattice gives 36 (cells of 1.2 l0)."""
+    across = (2 * grid.reach + 1) * grid.cell_size / spacing
+    return math.ceil(across - 1e-9) ** len(grid.shape)
 
 
 def _capacity(position: np.ndarray, capacity: int | None) -> int:

@@ -12,7 +12,8 @@
     collide      collision guard on u*                      Scene.collision
     advect       r* = r^k + dt u*                           fluid.advect
     <name>       a body model's internal forces in u*, r*   <model>.predict
-    neighbours   lists at r*                                neighbours.search
+    neighbours   lists at r* (the same carried ones, or     neighbours.search
+                 searched)
     surface      free-surface flags at r*                   fluid.detect_surface
     pressure     PPE (semi-implicit) or equation of state   Scene.solver
     correct      pressure force (body, contact parts),      fluid.pressure_force,
@@ -71,7 +72,7 @@ def _step(
     mobile = fluid.is_mobile(kind, active)
 
     with jax.named_scope("neighbours"):
-        nbrs_k, pairs_k = _neighbours(
+        nbrs_k, pairs_k, cache = _neighbours(
             scene, state.position, active, coupling, state.neighbours, batch_axis
         )
     with jax.named_scope("predict"):
@@ -90,7 +91,9 @@ def _step(
             )
 
     with jax.named_scope("neighbours"):
-        nbrs, pairs = _neighbours(scene, x_star, active, coupling)
+        nbrs, pairs, cache = _neighbours(
+            scene, x_star, active, coupling, cache, batch_axis
+        )
     # The density a deformable body's particles have unstrained stands for their
     # own body's pairs (`Coupling.source_view`): the surface and the pressure's
     # source see the body rigid within itself.
@@ -127,7 +130,7 @@ def _step(
                 disc, pairs, state.position, x_new, kind, active, dt
             )
             u_prime = u_prime + dt * push
-    new = _advanced(state, dt, x_star, u_star, u_prime, solution.pressure, nbrs)
+    new = _advanced(state, dt, x_star, u_star, u_prime, solution.pressure, cache)
     if scene.outflow is not None:
         with jax.named_scope("outflow"):
             new = fluid.apply_outflow(scene.outflow, scene.grid, new)
@@ -288,12 +291,12 @@ def _neighbours(
     coupling: Coupling | None = None,
     cache: neighbours.NeighbourCache | None = None,
     batch_axis: str | None = None,
-) -> tuple[neighbours.Neighbours, operators.Pairs]:
-    """Neighbour lists at `position` (the carried ones while valid) and their pair
-    geometry, as the fluid stages see it (`visible`: none with a hidden
-    particle)."""
+) -> tuple[neighbours.Neighbours, operators.Pairs, neighbours.NeighbourCache | None]:
+    """Neighbour lists at `position` (the carried ones while valid), their pair
+    geometry as the fluid stages see it (`visible`: none with a hidden
+    particle), and the lists to carry on (None without a `cache`)."""
     disc = scene.discretisation
-    nbrs = neighbours.search(
+    nbrs, cache = neighbours.search(
         scene.grid,
         position,
         active,
@@ -304,7 +307,7 @@ def _neighbours(
         batch_axis,
     )
     pairs = operators.make_pairs(nbrs.index, position, disc.weight, disc.r_e)
-    return nbrs, visible(coupling, pairs, disc.r_e)
+    return nbrs, visible(coupling, pairs, disc.r_e), cache
 
 
 def _pressure_inputs(
@@ -344,10 +347,11 @@ def _advanced(
     u_star: Velocities,
     u_prime: Velocities,
     pressure: Field,
-    nbrs: neighbours.Neighbours,
+    cache: neighbours.NeighbourCache | None,
 ) -> State:
     """The state after the fluid stages: r = r* + dt u', u = u* + u', the new
-    pressure, and the lists of r* for the next step."""
+    pressure, and the lists to carry to the next step (when the state carries
+    lists)."""
     return dataclasses.replace(
         state,
         time=state.time + dt,
@@ -356,18 +360,8 @@ def _advanced(
         position=x_star + dt * u_prime,
         velocity=u_star + u_prime,
         pressure=pressure,
-        neighbours=_carried(state, nbrs, x_star),
+        neighbours=cache,
     )
-
-
-def _carried(
-    state: State, nbrs: neighbours.Neighbours, position: Positions
-) -> neighbours.NeighbourCache | None:
-    """The lists the next step receives: those of the predicted positions, when the
-    state carries lists at all."""
-    if state.neighbours is None:
-        return None
-    return neighbours.NeighbourCache.of(nbrs, position, state.active)
 
 
 def _info(

@@ -155,7 +155,7 @@ def _buoyancy(lift: float, pressure: str) -> float:
     surface = (depth - 0.5) * l0  # P = 0 at the surface particles' centres
     rho_g = float(params.density) * G
     p = rho_g * jnp.maximum(surface - state.position[:, 1], 0.0)
-    _, pairs = jaxmps._step._neighbours(scene, state.position, state.active)
+    _, pairs, _ = jaxmps._step._neighbours(scene, state.position, state.active)
     coupling = jaxmps._step._coupling(scene, params, state)
     load = jaxmps.fluid.pressure_force(
         scene.gradient,

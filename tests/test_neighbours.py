@@ -13,6 +13,7 @@ from jaxmps.neighbours import (
     NeighbourCache,
     build,
     candidate_counts,
+    carried_search,
     reuse_or_build,
 )
 
@@ -162,7 +163,7 @@ def test_carried_lists_hold_every_pair_while_moves_stay_below_half_the_skin(rng,
         candidate_capacity=300 if dim == 2 else 600,
         reach=2,
     )
-    first = build(grid, jnp.asarray(x0), jnp.asarray(active), 150, radius + skin)
+    first = build(grid, jnp.asarray(x0), jnp.asarray(active), 150, radius, skin)
     cache = NeighbourCache.of(first, jnp.asarray(x0), jnp.asarray(active))
     # Every active particle moves by just under skin / 2 in a random direction.
     step = rng.normal(size=(n, dim))
@@ -191,14 +192,14 @@ def test_lists_are_searched_again_after_a_long_move_or_a_new_particle(rng):
     active = np.ones(n, bool)
     active[-5:] = False
     grid = _SKIN_GRID
-    first = build(grid, jnp.asarray(x0), jnp.asarray(active), 150, radius + skin)
+    first = build(grid, jnp.asarray(x0), jnp.asarray(active), 150, radius, skin)
     cache = NeighbourCache.of(first, jnp.asarray(x0), jnp.asarray(active))
 
     def check(x, active):
         got = reuse_or_build(
             grid, jnp.asarray(x), jnp.asarray(active), 150, radius, skin, cache
         )
-        new = build(grid, jnp.asarray(x), jnp.asarray(active), 150, radius + skin)
+        new = build(grid, jnp.asarray(x), jnp.asarray(active), 150, radius, skin)
         np.testing.assert_array_equal(np.asarray(got.index), np.asarray(new.index))
         ref = brute_force_neighbours(x, active, radius)
         np.testing.assert_array_equal(_within(got.index, x, radius), ref)
@@ -231,7 +232,7 @@ def test_neighbour_skin_settings_are_checked():
     with pytest.raises(ValueError, match="neighbour_skin"):
         jaxmps.make_scene(x, 1.0, domain, neighbour_skin=-0.1)
     scene = jaxmps.make_scene(x, 1.0, domain)
-    assert scene.neighbour_skin == pytest.approx(0.12)
+    assert scene.neighbour_skin == pytest.approx(0.3)
     assert scene.grid.radius >= scene.r_e + scene.neighbour_skin
     # A skin the grid's cells were not sized for is refused.
     with pytest.raises(ValueError, match="r_e \\+ neighbour_skin"):
@@ -243,7 +244,7 @@ def test_a_batch_decides_jointly_and_keeps_the_branch(rng):
     x0 = rng.uniform(0.1, 0.9, (n, 2))
     active = jnp.ones(n, bool)
     grid = _SKIN_GRID
-    first = build(grid, jnp.asarray(x0), active, 150, radius + skin)
+    first = build(grid, jnp.asarray(x0), active, 150, radius, skin)
     cache = NeighbourCache.of(first, jnp.asarray(x0), active)
     # Member 0 stays within half the skin, member 1 moves one particle beyond it.
     x1 = x0.copy()
@@ -263,7 +264,7 @@ def test_a_batch_decides_jointly_and_keeps_the_branch(rng):
     assert "cond[" in joint_jaxpr
     # Member 1 must search, so both do: same lists as a search, and the pairs.
     for x, index in zip(np.asarray(xs), np.asarray(got), strict=True):
-        searched = build(grid, jnp.asarray(x), active, 150, radius + skin)
+        searched = build(grid, jnp.asarray(x), active, 150, radius, skin)
         np.testing.assert_array_equal(index, np.asarray(searched.index))
         ref = brute_force_neighbours(x, np.ones(n, bool), radius)
         np.testing.assert_array_equal(_within(index, x, radius), ref)
@@ -271,3 +272,95 @@ def test_a_batch_decides_jointly_and_keeps_the_branch(rng):
     both = jnp.asarray(np.stack([x0, x0]))
     kept = joint(both, caches)
     np.testing.assert_array_equal(np.asarray(kept[1]), np.asarray(first.index))
+
+
+def test_lists_without_room_for_the_skin_hold_the_radius_pairs_uncarried(rng):
+    n, radius, skin = 300, 0.15, 0.03
+    x = rng.uniform(0.1, 0.9, (n, 2))
+    active = jnp.ones(n, bool)
+    core = brute_force_neighbours(x, np.ones(n, bool), radius).sum(1).max()
+    reach = brute_force_neighbours(x, np.ones(n, bool), radius + skin).sum(1).max()
+    assert core < reach  # the slots below fit the radius's pairs, not the skin's
+    k = int(core)
+    got = build(_SKIN_GRID, jnp.asarray(x), active, k, radius, skin)
+    assert not bool(got.with_skin) and not bool(got.neighbour_overflow)
+    ref = brute_force_neighbours(x, np.ones(n, bool), radius)
+    np.testing.assert_array_equal(_within(got.index, x, radius), ref)
+    assert np.all(np.asarray(got.index) == n, where=~ref.any(1, keepdims=True))
+    # Such lists are not carried: the next search builds anew.
+    cache = NeighbourCache.of(got, jnp.asarray(x), active)
+    assert not bool(cache.valid)
+    again, kept = carried_search(
+        _SKIN_GRID, jnp.asarray(x), active, k, radius, skin, cache
+    )
+    assert not bool(kept.valid)  # built again, with no more room than before
+    np.testing.assert_array_equal(np.asarray(again.index), np.asarray(got.index))
+    # With room for the skin, the lists hold its pairs and are carried.
+    roomy = build(_SKIN_GRID, jnp.asarray(x), active, int(reach), radius, skin)
+    assert bool(roomy.with_skin)
+    np.testing.assert_array_equal(
+        _within(roomy.index, x, radius + skin),
+        brute_force_neighbours(x, np.ones(n, bool), radius + skin),
+    )
+    # Slots too few even for the radius's pairs: flagged as before.
+    assert bool(
+        build(
+            _SKIN_GRID, jnp.asarray(x), active, k - 1, radius, skin
+        ).neighbour_overflow
+    )
+
+
+def test_carried_lists_add_up_the_moves_since_their_search(rng):
+    n, radius, skin = 300, 0.15, 0.03
+    x0 = rng.uniform(0.1, 0.9, (n, 2))
+    active = jnp.ones(n, bool)
+    first = build(_SKIN_GRID, jnp.asarray(x0), active, 150, radius, skin)
+    cache = NeighbourCache.of(first, jnp.asarray(x0), active)
+    step = rng.normal(size=(n, 2))
+    step *= 0.3 * skin / np.linalg.norm(step, axis=1, keepdims=True)
+
+    def search(x, c):
+        return carried_search(_SKIN_GRID, jnp.asarray(x), active, 150, radius, skin, c)
+
+    # 0.3 skin from the search: carried, and the cache keeps the search's positions.
+    nbrs, cache1 = search(x0 + step, cache)
+    np.testing.assert_array_equal(np.asarray(nbrs.index), np.asarray(first.index))
+    np.testing.assert_array_equal(np.asarray(cache1.position), x0)
+    # Another 0.3 skin (0.6 in all, beyond half the skin): searched again there.
+    x2 = x0 + 2 * step
+    nbrs, cache2 = search(x2, cache1)
+    new = build(_SKIN_GRID, jnp.asarray(x2), active, 150, radius, skin)
+    np.testing.assert_array_equal(np.asarray(nbrs.index), np.asarray(new.index))
+    np.testing.assert_allclose(np.asarray(cache2.position), x2)
+    np.testing.assert_array_equal(
+        _within(nbrs.index, x2, radius),
+        brute_force_neighbours(x2, np.ones(n, bool), radius),
+    )
+
+
+def test_candidates_are_sized_for_fluid_filling_an_empty_part_of_the_domain():
+    import jaxmps
+
+    # A bed of three wall rows, nothing above it: the initial stencils hold few
+    # particles, but fluid that later fills the box is a full lattice.
+    l0 = 1.0
+    bed = np.stack(np.meshgrid(np.arange(40.0), np.arange(3.0)), -1).reshape(-1, 2)
+    scene = jaxmps.make_scene(bed, l0, ((-3.0, -3.0), (43.0, 30.0)))
+    filled = np.stack(np.meshgrid(np.arange(40.0), np.arange(25.0)), -1)
+    filled = filled.reshape(-1, 2) + 0.37  # off the cells' corners
+    assert int(candidate_counts(scene.grid, bed).max()) < 27
+    assert scene.grid.candidate_capacity >= 1.5 * 36  # cells of 1.2 l0: 6 x 6
+    n = len(filled)
+    got = build(
+        scene.grid,
+        jnp.asarray(filled),
+        jnp.ones(n, bool),
+        scene.max_neighbours,
+        scene.r_e,
+        scene.neighbour_skin,
+    )
+    assert not bool(got.cell_overflow) and bool(got.with_skin)
+    np.testing.assert_array_equal(
+        _within(got.index, filled, scene.r_e),
+        brute_force_neighbours(filled, np.ones(n, bool), scene.r_e),
+    )

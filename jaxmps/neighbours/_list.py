@@ -42,6 +42,10 @@ class Neighbours(eqx.Module):
         cell_overflow: the stencil cells of some particle held more particles
             than `Grid.candidate_capacity`.
         outside: active particles whose position lies outside the grid box.
+        with_skin: the lists hold every pair within the search radius plus the
+            skin, so that they can be carried (`NeighbourCache`); False where the
+            pairs within the skin did not fit in the slots and only those within
+            the radius were listed (`build`).
     """
 
     index: Int[Array, "n k"]
@@ -49,6 +53,7 @@ class Neighbours(eqx.Module):
     neighbour_overflow: Bool[Array, ""]
     cell_overflow: Bool[Array, ""]
     outside: Bool[Array, " n"]
+    with_skin: Bool[Array, ""]
 
 
 def _flatten(coords: Int[Array, "... d"], shape: tuple[int, ...]) -> Int[Array, "..."]:
@@ -143,17 +148,22 @@ def build(
     active: Bool[Array, " n"],
     max_neighbours: int,
     radius: float,
+    skin: float = 0.0,
 ) -> Neighbours:
-    """Neighbour lists of all active particles within `radius` (strictly less).
+    """Neighbour lists of all active particles within `radius` + `skin` (strictly
+    less), or, where those pairs do not fit in `max_neighbours` slots for some
+    particle, within `radius` only (`Neighbours.with_skin` False: such lists
+    cannot be carried). `neighbour_overflow` and `count` refer to `radius`.
 
-    Requires `grid.radius >= radius`. Differentiation: the lists are integer data;
-    positions are `stop_gradient`-ed here and gradients flow through the pair
+    Requires `grid.radius >= radius + skin`. Differentiation: the lists are integer
+    data; positions are `stop_gradient`-ed here and gradients flow through the pair
     geometry evaluated afterwards (`operators.make_pairs`).
     """
-    if grid.radius < radius * (1 - 1e-12):
+    reach = radius + skin
+    if grid.radius < reach * (1 - 1e-12):
         raise ValueError(
             f"Grid.cell_size x Grid.reach = {grid.radius} is smaller than the search "
-            f"radius {radius}."
+            f"radius {reach}."
         )
     n, dim = position.shape
     s, capacity = grid.reach, grid.candidate_capacity
@@ -207,9 +217,17 @@ def build(
     for axis in range(dim):
         component = x[:, axis]
         dist2 = dist2 + (component[order][slot] - component[:, None]) ** 2
-    hit = listed & (slot != rank[:, None]) & (dist2 < radius**2) & active[:, None]
+    candidate = listed & (slot != rank[:, None]) & active[:, None]
+    hit = candidate & (dist2 < radius**2)
     count = jnp.sum(hit, axis=1, dtype=jnp.int32)
     neighbour_overflow = jnp.max(count) > max_neighbours
+    with_skin = jnp.asarray(skin > 0)
+    if skin > 0:
+        # The skin's pairs only where every particle's fit (a whole-list choice, so
+        # that carried lists are complete or not carried).
+        in_reach = candidate & (dist2 < reach**2)
+        with_skin = jnp.max(jnp.sum(in_reach, axis=1)) <= max_neighbours
+        hit = jnp.where(with_skin, in_reach, hit)
     chosen = first_hits(hit, slot, max_neighbours, n)
     index = jnp.append(order, jnp.int32(n))[chosen]
     return Neighbours(
@@ -218,24 +236,26 @@ def build(
         neighbour_overflow=neighbour_overflow,
         cell_overflow=cell_overflow,
         outside=outside,
+        with_skin=with_skin,
     )
 
 
 class NeighbourCache(eqx.Module):
-    """A neighbour list carried from one step to the next (a Verlet list).
+    """Neighbour lists carried from search to search (a Verlet list).
 
-    The lists of a step are built at the predicted positions r* with the radius
-    r_e + skin. The particles then move by the pressure correction only, typically
-    1 % of l0 and rarely 10 % (2-D dam break), before the next step searches again
-    at its start. While no particle has moved by half the skin since the build, and
-    no slot has been switched on or off, every pair closer than r_e lies in the
-    carried list, so that search is skipped (`reuse_or_build`).
+    Lists are built within r_e + skin. While no particle has moved by half the
+    skin since the build, and no slot has been switched on or off, every pair
+    closer than r_e lies in the carried lists, so a step uses them at its start
+    (r^k) and at its predicted positions (r*) instead of searching
+    (`carried_search`); the positions of the build are kept, so the moves add up
+    over the steps until the next search.
 
     Attributes:
         index: the carried lists, sentinel n in empty slots.
         position: the positions they were built at (no gradient).
         active: the active mask they were built for.
-        valid: False until a list has been stored.
+        valid: False until a list has been stored, and for lists that could not
+            hold the skin's pairs or overflowed.
     """
 
     index: Int[Array, "n k"]
@@ -261,11 +281,11 @@ class NeighbourCache(eqx.Module):
             index=nbrs.index,
             position=jax.lax.stop_gradient(position),
             active=active,
-            valid=~(nbrs.neighbour_overflow | nbrs.cell_overflow),
+            valid=nbrs.with_skin & ~(nbrs.neighbour_overflow | nbrs.cell_overflow),
         )
 
 
-def reuse_or_build(
+def carried_search(
     grid: Grid,
     position: Float[Array, "n d"],
     active: Bool[Array, " n"],
@@ -274,9 +294,10 @@ def reuse_or_build(
     skin: float,
     cache: NeighbourCache,
     batch_axis: str | None = None,
-) -> Neighbours:
-    """Neighbour lists within `radius` at `position`: the cached lists when they
-    still hold every such pair, else a new search (`build` with radius + skin).
+) -> tuple[Neighbours, NeighbourCache]:
+    """Neighbour lists within `radius` at `position`, and the cache to carry on:
+    the cached lists (and the same cache) while they still hold every such pair,
+    else a new search (`build` with `skin`) and a cache of its lists.
 
     The cached lists were built with radius + skin at `cache.position`. A pair
     closer than `radius` now was closer than radius + skin then if each of its
@@ -302,18 +323,37 @@ def reuse_or_build(
 
     def carried():
         _, outside = cell_coordinates(grid, x)
-        return Neighbours(
+        nbrs = Neighbours(
             index=cache.index,
             count=jnp.sum(cache.index < x.shape[0], axis=1, dtype=jnp.int32),
             neighbour_overflow=jnp.asarray(False),
             cell_overflow=jnp.asarray(False),
             outside=jnp.logical_and(outside, active),
+            with_skin=jnp.asarray(True),
         )
+        return nbrs, cache
 
     def searched():
-        return build(grid, x, active, max_neighbours, radius + skin)
+        nbrs = build(grid, x, active, max_neighbours, radius, skin)
+        return nbrs, NeighbourCache.of(nbrs, x, active)
 
     return jax.lax.cond(reusable, carried, searched)
+
+
+def reuse_or_build(
+    grid: Grid,
+    position: Float[Array, "n d"],
+    active: Bool[Array, " n"],
+    max_neighbours: int,
+    radius: float,
+    skin: float,
+    cache: NeighbourCache,
+    batch_axis: str | None = None,
+) -> Neighbours:
+    """The lists of `carried_search`, without the cache to carry on."""
+    return carried_search(
+        grid, position, active, max_neighbours, radius, skin, cache, batch_axis
+    )[0]
 
 
 def search(
@@ -325,17 +365,18 @@ def search(
     skin: float,
     cache: NeighbourCache | None = None,
     batch_axis: str | None = None,
-) -> Neighbours:
+) -> tuple[Neighbours, NeighbourCache | None]:
     """The neighbour stage of a step: lists of every pair closer than `radius`,
-    searched within radius + `skin` so that they can be carried to the next step.
+    searched within radius + `skin` so that they can be carried, and the cache to
+    carry on (None without a `cache`).
 
-    With a `cache` (lists carried from the previous step), those are used instead
-    of a search while they still hold every such pair (`reuse_or_build`, where
+    With a `cache` (lists carried from an earlier search), those are used instead
+    of a search while they still hold every such pair (`carried_search`, where
     `batch_axis` is explained). Pairs beyond `radius` are masked afterwards by the
     pair geometry (`operators.Pairs.valid`).
     """
     if cache is None:
-        return build(grid, position, active, max_neighbours, radius + skin)
-    return reuse_or_build(
+        return build(grid, position, active, max_neighbours, radius, skin), None
+    return carried_search(
         grid, position, active, max_neighbours, radius, skin, cache, batch_axis
     )
