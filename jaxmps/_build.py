@@ -107,9 +107,7 @@ def make_scene(
     skin = float(neighbour_skin) * spacing
     grid = _grid(position, domain, discretisation.r_e + skin, reach)
     if candidate_capacity is None:
-        most = int(candidate_counts(grid, position).max()) if len(position) else 1
-        most = max(most, _filled_stencil(grid, spacing))
-        candidate_capacity = max(2, math.ceil(candidate_margin * most))
+        candidate_capacity = _candidates(grid, position, spacing, candidate_margin)
     grid = eqx.tree_at(lambda g: g.candidate_capacity, grid, int(candidate_capacity))
     if max_neighbours is None:
         lattice_count = len(lattice_offsets(dim, scheme.r_e))
@@ -131,6 +129,14 @@ def make_scene(
         time_step=time_step,
         escape_limit=int(escape_limit),
     )
+
+
+def _candidates(grid: Grid, position: np.ndarray, spacing: float, margin: float) -> int:
+    """The default `Grid.candidate_capacity`: `margin` x the most particles in one
+    particle's stencil cells, initially or in a filled lattice (`_filled_stencil`)."""
+    most = int(candidate_counts(grid, position).max()) if len(position) else 1
+    most = max(most, _filled_stencil(grid, spacing))
+    return max(2, math.ceil(margin * most))
 
 
 def _filled_stencil(grid: Grid, spacing: float) -> int:
