@@ -8,9 +8,9 @@ import jax.numpy as jnp
 
 from .._numerics import take_rows
 from .._params import Params
-from .._types import Field, Kind, Velocities
+from .._types import PRESSURE_KINDS, Field, Kind, Mask, Velocities, is_kind
 from ..neighbours import Grid
-from ..operators import AbstractLaplacian, Discretisation
+from ..operators import AbstractLaplacian, Discretisation, Pairs
 from ._precondition import AbstractPreconditioner, Multigrid
 from ._predict import is_mobile
 from ._pressure import solve_pressure
@@ -38,13 +38,20 @@ class SemiImplicit(AbstractPressureSolver):
             V-cycle, the default) or `Jacobi()`.
         surface_head: the pressure of free-surface fluid and wall particles, in
             units of rho |g| l0: the head of the water above a surface particle's
-            centre. 0 is the seed's P = 0 at the surface particles' centres.
+            centre. 0 is the seed's P = 0 at the surface particles' centres. The
+            surface particles of a body pressed like the fluid
+            (`RigidBodies.pressure="fluid"`) take the same head of their own
+            density where they face up, rho_body |g| l0 surface_head max(0,
+            n.up) for an outward normal n, with `body_head`.
         dummy_head: continue the pressure into the dummy particles hydrostatically,
             P_j = P_i + rho0 g.(r_j - r_i), instead of the seed's zero gradient
             (the dummies drop out of the PPE), and leave gravity's uniform fall out
             of the source's velocity (mobile particles enter it as u* - dt g), so
             that still water is not read as compressed against the walls. Needs a
             source with a velocity term (not `DensitySource`).
+        body_head: give the surface particles of bodies pressed like the fluid
+            the surface head of their own density where they face up (True), or
+            hold them at 0 (False, as the seed does).
     """
 
     needs_surface: ClassVar[bool] = True
@@ -64,8 +71,7 @@ class SemiImplicit(AbstractPressureSolver):
     preconditioner: AbstractPreconditioner = Multigrid()
     # Choice: 0.5, not the seed's 0, on fluid and wall surface particles: the
     # hydrostatic pressure at the centre of a particle half a particle below the
-    # free surface. A body's surface particles keep 0 (its dry faces are not
-    # water). With 0 the water's top layer is held up by its one-sided gradient
+    # free surface. With 0 the water's top layer is held up by its one-sided gradient
     # and still water's pressure runs out 0.48 l0 below the water's surface in the
     # interior (0.2 m tank, l0 = 1 cm; 0.27-0.49 l0 at the bottom probe in four
     # tanks); a floating body, whose waterline does not share that support, rests
@@ -75,7 +81,21 @@ class SemiImplicit(AbstractPressureSolver):
     # (same motion, same noise). Applied to fluid particles alone, the dry wall
     # particles at 0 beside them made a step at every contact line, which doubled
     # the noise of the still-water pressure.
+    # Choice, with `body_head`: the dry surface of a body pressed like the fluid
+    # gets the head of its own density where it faces up. The body's force is the
+    # sum of the fluid's gradient over its particles, which reads the pressure at
+    # a dry face by extrapolating the interior field half a particle out from the
+    # surface particles' centres: held at P = 0 there, the face reads -s l0 / 2
+    # (s the interior slope along the normal) and the body is pushed out by
+    # s l0 / 2 per unit area. Holding them at s l0 / 2 (a Robin condition, P = 0
+    # at the face) needs s; at rest a floating body's interior is hydrostatic in
+    # its own density (measured 0.9 rho g in a box of density ratio 0.8 at B/10),
+    # so s = rho_body |g| (n.up) on a face of outward normal n. With the dry
+    # faces at 0 boxes floated 0.1-0.3 l0 too high at B/10 and B/20 (ratio 0.8:
+    # -0.33 / -0.30 l0 by the pressure's surface), the error in l0 not falling;
+    # the pair-form bodies sum no interior field and keep 0.
     surface_head: float = 0.5
+    body_head: bool = True
     # Choice: a hydrostatic wall condition, not the seed's zero-gradient dummies.
     # With a zero gradient the walls carry less than the water's weight where
     # dummies surround them: in the 3-D tank (l0 = 2 cm) the wall particles at the
@@ -109,14 +129,23 @@ class SemiImplicit(AbstractPressureSolver):
     def _surface_pressure(
         self, disc: Discretisation, params: Params, inputs: PressureInputs
     ) -> Field | None:
-        """surface_head rho |g| l0 on free-surface fluid and wall particles, 0 on
-        the bodies' surface particles; None when surface_head is 0."""
+        """surface_head rho |g| l0 on free-surface fluid and wall particles, the
+        same with the body's own density, times how far they face up, on the
+        surface particles of bodies pressed like the fluid, 0 on the other
+        bodies' surface particles; None when surface_head is 0."""
         if self.surface_head == 0:
             return None
-        head = self.surface_head * params.density * disc.spacing
-        head = head * jnp.sqrt(jnp.sum(params.gravity**2))
+        head = self.surface_head * disc.spacing * jnp.sqrt(jnp.sum(params.gravity**2))
+        surface = inputs.surface & inputs.active
         water = (inputs.kind == int(Kind.FLUID)) | (inputs.kind == int(Kind.WALL))
-        return jnp.where(inputs.surface & inputs.active & water, head, 0.0)
+        pressure = jnp.where(surface & water, head * params.density, 0.0)
+        if inputs.coupling is None or not self.body_head:
+            return pressure
+        pressed = surface & inputs.coupling.as_fluid
+        carries = inputs.active & is_kind(inputs.kind, PRESSURE_KINDS)
+        facing = _facing_up(inputs.pairs, carries, params.gravity)
+        own = head * inputs.coupling.density * facing
+        return jnp.where(pressed, own, pressure)
 
     def _source_velocity(self, params: Params, inputs: PressureInputs) -> Velocities:
         """The velocity the source sees: u* - dt g on mobile particles with the
@@ -200,3 +229,16 @@ class SemiImplicit(AbstractPressureSolver):
             converged=info.converged,
             unstable=jnp.asarray(False),
         )
+
+
+def _facing_up(pairs: Pairs, carries: Mask, gravity) -> Field:
+    """How far each particle's surface faces up, against gravity: max(0, n.up)
+    with n the outward normal, minus the direction of sum_j w_ij r_ij over its
+    pressure-carrying neighbours (1 on a flat top, 0 on a vertical face)."""
+    w = jnp.where(pairs.valid & take_rows(carries, pairs.index), pairs.weight, 0.0)
+    inward = [jnp.sum(w * o, axis=1) for o in pairs.offset]
+    along = sum(m * g for m, g in zip(inward, gravity, strict=True))
+    # |m| |g|, kept off 0 inside the root so that its gradient stays finite
+    tiny = jnp.finfo(along.dtype).tiny
+    scale = jnp.sqrt(sum(m**2 for m in inward) * jnp.sum(gravity**2) + tiny)
+    return jnp.clip(along / scale, 0.0, 1.0)
