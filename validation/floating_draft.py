@@ -57,6 +57,7 @@ def case_rows(quick: bool):
 
 
 WALLS = {"hydrostatic": True, "zero-gradient": False}
+BODY_HEADS = {"own": True, "zero": False}
 
 
 def measure(
@@ -69,6 +70,7 @@ def measure(
     head=None,
     walls=None,
     sound_speed=None,
+    body_head=None,
 ):
     case = jaxmps.scenes.floating_box(
         body_pressure=pressure,
@@ -81,6 +83,10 @@ def measure(
         case = eqx.tree_at(lambda c: c.scene.solver.surface_head, case, head)
     if walls is not None:
         case = eqx.tree_at(lambda c: c.scene.solver.dummy_head, case, WALLS[walls])
+    if body_head is not None:
+        case = eqx.tree_at(
+            lambda c: c.scene.solver.body_head, case, BODY_HEADS[body_head]
+        )
     c, dt = case.config, float(case.params.dt)
     l0, bh = c["spacing"], c["box_height"]
     settle_steps = round(settle / dt)
@@ -113,6 +119,11 @@ def measure(
             if solver == "semi_implicit"
             else None
         ),
+        body_head=(
+            ("own" if case.scene.solver.body_head else "zero")
+            if solver == "semi_implicit"
+            else None
+        ),
         sound_speed=float(case.params.sound_speed) if solver == "explicit" else None,
         dim=int(c["dim"]),
         spacing=l0,
@@ -140,8 +151,8 @@ def markdown(rows, info):
     lines = [
         "# Floating box: equilibrium draft against Archimedes",
         "",
-        f"Machine: {info.get('cpu_model', '?')}; float64; "
-        "`validation/floating_draft.py`.",
+        f"Machine of the last run: {info.get('cpu_model', '?')}; each row names"
+        " its host; float64; `validation/floating_draft.py`.",
         "Errors are time means over the window, minus density_ratio x box height.",
         "'displaced': the depth of water the box displaces, counted by mass",
         "(`DisplacedDepth`: far columns minus the columns under the box) - Archimedes",
@@ -149,24 +160,31 @@ def markdown(rows, info):
         "pressure's free surface (`PressureLevel`) to the box's bottom face.",
         "'centres': from the far surface particles' centres to the bottom face.",
         "head: the semi-implicit solver's `surface_head`; walls: its dummies'",
-        "pressure, continued hydrostatically or with a zero gradient (`dummy_head`).",
+        "pressure, continued hydrostatically or with a zero gradient (`dummy_head`);",
+        "body: the pressure of the box's dry surface particles, the surface head",
+        "of the box's own density ('own', `body_head`) or 0 ('zero').",
         "c: the explicit solver's sound speed (10 m/s: the seeds'; otherwise the",
         "floating scenes' default, ten times sqrt(2 g depth)).",
         "Target: |displaced| <= 0.3 l0, falling in mm with l0. The probe swings by",
         "+-0.4 l0 with the tank's sloshing: a 1 s window's mean can be 0.3 l0 off",
         "a 3 s window's.",
         "",
-        "| case | solver | head | walls | c [m/s] | dim | B/l0 | ratio | H [m] |"
+        "| case | host | solver | head | walls | body | c [m/s] | dim | B/l0 |"
+        " ratio |"
+        " H [m] |"
         " depth [m] |"
         " displaced [l0] | displaced [mm] | pressure [l0] | centres [l0] |"
         " std [l0] | heel [deg] | window [s] | wall [s] |",
-        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"
+        "---|",
     ]
     for r in rows:
         head = "" if r.get("surface_head") is None else f"{r['surface_head']:g}"
         c = "" if r.get("sound_speed") is None else f"{r['sound_speed']:.1f}"
         lines.append(
-            f"| {r['case']} | {r['solver']} | {head} | {r.get('walls') or ''} | {c} |"
+            f"| {r['case']} | {r.get('host', '?').split(',')[0]} | {r['solver']} |"
+            f" {head} | {r.get('walls') or ''} |"
+            f" {r.get('body_head') or ''} | {c} |"
             f" {r['dim']} |"
             f" {r['box_over_l0']} | {r['density_ratio']} | {r['box_height']} |"
             f" {r['depth']} | {r['displaced_l0']:+.2f} | {r['displaced_mm']:+.2f} |"
@@ -209,6 +227,13 @@ def main():
         default=["auto"],
         help="explicit sound speeds [m/s], or 'auto' (the scene's default)",
     )
+    parser.add_argument(
+        "--body-heads",
+        nargs="+",
+        choices=sorted(BODY_HEADS),
+        default=[None],
+        help="semi-implicit body_head: the box's own head or 0 (default: the solver's)",
+    )
     parser.add_argument("--cases", nargs="*", help="only these case names")
     parser.add_argument("--spacings", nargs="*", type=float, help="only these l0")
     parser.add_argument("--out", default="floating_draft_cpu")
@@ -217,10 +242,13 @@ def main():
     path = HERE / "results" / args.out
     old = []
     if args.merge and path.with_suffix(".json").exists():
-        old = json.loads(path.with_suffix(".json").read_text())["rows"]
+        stored = json.loads(path.with_suffix(".json").read_text())
+        old = stored["rows"]
         for r in old:  # rows from before the choice of wall condition
+            r.setdefault("host", stored["machine"].get("cpu_model", "?"))
             if r["solver"] == "semi_implicit":
                 r.setdefault("walls", "zero-gradient")
+                r.setdefault("body_head", "zero")  # before the bodies' head
             else:  # rows from before the depth-derived sound speed
                 r.setdefault("sound_speed", 10.0)
     rows = []
@@ -233,8 +261,11 @@ def main():
             semi = solver == "semi_implicit"
             heads = args.heads if semi else [None]
             speeds = [None] if semi else args.sound_speeds
-            for head, walls, speed in itertools.product(
-                heads, args.walls if semi else [None], speeds
+            for head, walls, body, speed in itertools.product(
+                heads,
+                args.walls if semi else [None],
+                args.body_heads if semi else [None],
+                speeds,
             ):
                 row = measure(
                     overrides,
@@ -246,8 +277,10 @@ def main():
                     head,
                     walls,
                     None if speed in (None, "auto") else float(speed),
+                    body,
                 )
                 row["case"] = name
+                row["host"] = machine_info().get("cpu_model", "?")
                 rows.append(row)
                 print(json.dumps(row), flush=True)
                 merged = [r for r in old if _key(r) not in {_key(n) for n in rows}]
@@ -268,6 +301,7 @@ def _key(row):
             "solver",
             "surface_head",
             "walls",
+            "body_head",
             "sound_speed",
             "dim",
             "spacing",

@@ -227,10 +227,11 @@ def main():
     parser.add_argument("--section", choices=sorted(SECTIONS), default="box")
     parser.add_argument("--offset", type=float, default=0.01)
     add_decay_arguments(parser, tank=3.0, depth=0.4, t_end=3.0, fit=2.5)
+    parser.add_argument("--out", help="results file name (default: by section)")
     args = parser.parse_args()
     jax.config.update("jax_enable_x64", True)
     name = "heave_decay" if args.section == "box" else f"heave_decay_{args.section}"
-    path = HERE / "results" / f"{name}_cpu"
+    path = HERE / "results" / (args.out or f"{name}_cpu")
     measure_row = functools.partial(
         measure,
         args.section,
