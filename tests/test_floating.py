@@ -57,11 +57,11 @@ def test_displaced_depth_probe_counts_archimedes_on_the_lattice():
 @pytest.mark.parametrize("ratio", [0.3, 0.6, 0.8])
 def test_floating_box_draft_matches_archimedes(ratio):
     """The water a box of 10 x 5 particles (l0 = 2 cm) displaces, in water two box
-    heights deep, is within 0.3 l0 of Archimedes' (measured over 3 s on an AMD EPYC
-    host: +0.005, -0.288, -0.293 l0 at ratio 0.3 / 0.6 / 0.8, close to the gate at
-    this coarsest spacing; validation/floating_draft.py has the matrix). With the
-    seed's P = 0 at the surface particles' centres (`surface_head=0`) these boxes
-    displaced +0.38 to +0.53 l0 too much."""
+    heights deep, is within 0.3 l0 of Archimedes' (validation/floating_draft.py,
+    3 s after 2 s, Intel host: +0.00, +0.14, +0.25 l0 at ratio 0.3 / 0.6 / 0.8; with
+    the box's dry faces at 0, `body_head=False`, +0.005, -0.288, -0.293 l0 on an AMD
+    host, the box floating high). With the seed's P = 0 at the surface particles'
+    centres (`surface_head=0`) these boxes displaced +0.38 to +0.53 l0 too much."""
     case = jaxmps.scenes.floating_box(density_ratio=ratio, spacing=0.02)
     error, s = _draft_error(case)
     assert abs(error) < 0.3, f"displaced depth error {error:+.2f} l0"
@@ -73,9 +73,9 @@ def test_dry_faces_of_a_pressed_body_carry_its_own_surface_head():
     at the surface head of the body's own density (0.5 rho_b g l0, P = 0 half a
     particle above the top row's centres), its vertical dry faces lower (they
     do not face up: the particle below the corner reads 0.33 of the head, its
-    normal tilted up by the corner) and nowhere above that head; its wetted bottom stays in the
-    solve under the water's pressure. With `body_head=False` the dry faces are
-    held at 0, as the seed does."""
+    normal tilted up by the corner) and nowhere above that head; its wetted
+    bottom stays in the solve under the water's pressure. With
+    `body_head=False` the dry faces are held at 0, as the seed does."""
     import equinox as eqx
 
     case = jaxmps.scenes.floating_box(density_ratio=0.6, spacing=0.02)
