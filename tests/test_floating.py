@@ -3,6 +3,7 @@ box."""
 
 import math
 
+import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 import pytest
@@ -76,8 +77,6 @@ def test_dry_faces_of_a_pressed_body_carry_its_own_surface_head():
     normal tilted up by the corner) and nowhere above that head; its wetted
     bottom stays in the solve under the water's pressure. With
     `body_head=False` the dry faces are held at 0, as the seed does."""
-    import equinox as eqx
-
     case = jaxmps.scenes.floating_box(density_ratio=0.6, spacing=0.02)
     l0, rho = case.config["spacing"], float(case.params.density)
     body = np.asarray(case.state.rigid.body) >= 0
@@ -109,8 +108,6 @@ def test_heavy_box_draft_at_finer_spacing_with_its_own_head():
     Archimedes' (measured +0.08 l0 over 3 s); with its dry faces at 0 it floated
     higher, by the interior's half-particle extrapolation, 0.5 x 0.8 l0 in
     theory (measured -0.32 l0 with them at 0)."""
-    import equinox as eqx
-
     case = jaxmps.scenes.floating_box(density_ratio=0.8, spacing=0.01)
     error, s = _draft_error(case)
     assert abs(error) < 0.3, f"displaced depth error {error:+.2f} l0"
