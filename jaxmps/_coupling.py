@@ -61,6 +61,9 @@ class Coupling(eqx.Module):
         between_bodies: whether the pressure stage splits out the part of the
             pair form that other bodies exert (`FluidLoad.body_gradient`, which
             friction between bodies needs); static.
+        pressed: whether any body is pressed like the fluid (`as_fluid` can be
+            True somewhere), so that a scene without one compiles nothing for
+            them; static.
     """
 
     density: Float[Array, " n"]
@@ -71,6 +74,7 @@ class Coupling(eqx.Module):
     packing: Float[Array, " n"] | None = None
     force: Float[Array, "n d"] | None = None
     between_bodies: bool = eqx.field(static=True, default=False)
+    pressed: bool = eqx.field(static=True, default=False)
 
     @property
     def owned(self) -> Bool[Array, " n"]:

@@ -249,6 +249,7 @@ def _coupling(scene: Scene, params: Params, state: State) -> Coupling | None:
             packing=_merged_packing(merged, part),
             force=_merged_force(merged, part),
             between_bodies=merged.between_bodies or part.between_bodies,
+            pressed=merged.pressed or part.pressed,
         )
     return merged
 

@@ -159,6 +159,7 @@ class RigidBodies(AbstractBodyModel):
             owner=body,
             as_fluid=(body >= 0) & (self.pressure == "fluid"),
             between_bodies=self.count > 1 and self.friction is not None,
+            pressed=self.pressure == "fluid",
         )
 
     def advance(

@@ -139,7 +139,7 @@ class SemiImplicit(AbstractPressureSolver):
         surface = inputs.surface & inputs.active
         water = (inputs.kind == int(Kind.FLUID)) | (inputs.kind == int(Kind.WALL))
         pressure = jnp.where(surface & water, head * params.density, 0.0)
-        if inputs.coupling is None or not self.body_head:
+        if inputs.coupling is None or not (self.body_head and inputs.coupling.pressed):
             return pressure
         pressed = surface & inputs.coupling.as_fluid
         carries = inputs.active & is_kind(inputs.kind, PRESSURE_KINDS)
