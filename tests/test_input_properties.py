@@ -81,6 +81,8 @@ def small_limit():
     suppress_health_check=[HealthCheck.function_scoped_fixture],
 )
 @given(overrides=_settings(4))
+# A subnormal spacing once overflowed the particle count (OverflowError).
+@example(overrides={"spacing": 2.2250738585e-313})
 def test_scene_settings_build_or_are_refused_by_name(small_limit, overrides):
     try:
         case = jaxmps.scenes.hydrostatic(**overrides)

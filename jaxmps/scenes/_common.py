@@ -562,8 +562,19 @@ def nearest_wall(walls: np.ndarray, wall_kind: np.ndarray, point) -> tuple[int, 
 
 
 def whole(value: float, spacing: float) -> float:
-    """Round a length to a whole number of spacings (at least one)."""
-    return max(1, round(value / spacing)) * spacing
+    """Round a length to a whole number of spacings (at least one).
+
+    Raises:
+        ValueError: naming `spacing`, where the count is beyond any index (a
+            spacing so small that the length holds more than 2^31 of them).
+    """
+    count = value / spacing
+    if not count <= 2**31:
+        raise ValueError(
+            f"spacing={spacing:g} m divides a length of {value:g} m into "
+            f"{count:.3g} particles, more than any scene can index; raise spacing."
+        )
+    return max(1, round(count)) * spacing
 
 
 def velocity_scale(height: float, gravity: float) -> float:
