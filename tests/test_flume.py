@@ -249,6 +249,7 @@ def test_blocks_rest_in_their_recess_in_still_water(solver):
     assert tilt < 0.5
 
 
+@pytest.mark.slow
 def test_blocks_hold_in_the_flow_over_them():
     """Seed 002's Case 3-2 protection (no washout at q = 0.006 m^2/s with 0.8
     cm of the last block's face exposed): here 1 cm of the 1.25 cm face exposed

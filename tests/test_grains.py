@@ -540,7 +540,7 @@ def test_a_restart_continues_the_grains_bit_for_bit(tmp_path):
 @pytest.mark.parametrize(
     "field",
     [
-        "friction",
+        pytest.param("friction", marks=pytest.mark.slow),
         "restitution",
         pytest.param("density", marks=pytest.mark.slow),
         pytest.param("stiffness", marks=pytest.mark.slow),

@@ -33,6 +33,7 @@ def test_inflow_particle_count_matches_discharge_on_dry_bed():
     assert int(tr.state.active.sum()) == int(case.state.active.sum()) + int(count[-1])
 
 
+@pytest.mark.slow
 def test_flume_mass_balance_at_steady_state():
     """Storage change over 1 s of steady flow within 2 % of the inflow (measured
     0.5 %): what enters leaves over the free overfall."""

@@ -88,6 +88,7 @@ def test_a_wave_above_the_inflow_boundary_is_refused_before_the_run():
         jaxmps.simulate(case.scene, higher, case.state, 2, 2)
 
 
+@pytest.mark.slow
 def test_the_wave_lifts_the_ship_onto_the_quay_and_the_inflow_balances():
     """2-D at l0 = 1 m (8 m wave on a 12 m sea, quay 2 m above it): within 13 s
     the ship is carried over the quay edge, its keel above the quay top, faster
@@ -117,6 +118,7 @@ def test_the_wave_lifts_the_ship_onto_the_quay_and_the_inflow_balances():
     assert gained == pytest.approx(np.trapezoid(fed, t), rel=0.02)
 
 
+@pytest.mark.slow
 def test_three_d_scene_feeds_the_channel_and_floats_the_ship():
     """3-D: the inflow sheet spans the channel, feeds it, and nothing leaves the
     channel sideways (a smoke run at l0 = 2 m, the wave rising over 3 s: in 2 s
