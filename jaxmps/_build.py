@@ -19,6 +19,12 @@ from .operators import Discretisation, lattice_offsets, reference_constants
 
 # Choice: the default skin of the neighbour lists, in units of l0 (see make_scene).
 NEIGHBOUR_SKIN = 0.3
+# Choice: the default slots hold the pairs within (r_e + skin)(1 + SKIN_SLACK) of a
+# regular lattice, so that a flow a little denser than the lattice keeps its lists
+# carried. In 3-D the lattice's shell at sqrt(6) = 2.45 l0 (24 pairs) lies 2 %
+# beyond r_e + skin = 2.4 l0: with 64 slots a compression of 2 % made every
+# search fall back to the pairs within r_e (benchmarks/NOTES.md §14).
+SKIN_SLACK = 0.05
 # Choice: the share of the elastic step limit a sub-step takes by default (the
 # share adaptive steps take of the hard limits, `Adaptive.stability`).
 # Choice: default sub-steps at a quarter of the sub-step limit. Measured: a dense
@@ -57,7 +63,10 @@ def make_scene(
         scheme: the discretisation (influence radius, operators, pressure stage):
             a `jaxmps.schemes` preset, `schemes.standard()` by default.
         capacity: particle slots (>= m); the extra slots form the inactive pool.
-        neighbour_margin: `max_neighbours` = ceil(margin x lattice neighbour count).
+        neighbour_margin: `max_neighbours` = ceil(margin x lattice neighbour count),
+            and with a skin at least the regular lattice's pairs within
+            (r_e + skin)(1 + 0.05) (`SKIN_SLACK`; 2-D: 24 slots either way,
+            3-D with r_e = 2.1 l0: 80, not 64).
         candidate_margin: `candidate_capacity` = ceil(margin x the most particles
             in the stencil cells of one particle, initially or in a filled
             regular lattice, whichever is more).
@@ -71,7 +80,7 @@ def make_scene(
             the skin's pairs do not fit in `max_neighbours` slots, a search lists
             those within r_e only and the next one searches again. 0.3 holds the
             regular lattice's pairs within 2.4 l0 (20 in 2-D, 56 in 3-D, within the
-            default 24 and 64 slots) and carries the lists over the 0.1 l0 a fast
+            default 24 and 80 slots) and carries the lists over the 0.1 l0 a fast
             particle moves in an explicit step (2-D dam break, 25k particles,
             float64: 22.3 -> 8.8 ms per step over the first 200 steps, 26.3 ->
             16.3 ms at 0.22 s; 0.12 l0 gave 10.5 and 27.5 ms; benchmarks/NOTES.md
@@ -112,6 +121,9 @@ def make_scene(
     if max_neighbours is None:
         lattice_count = len(lattice_offsets(dim, scheme.r_e))
         max_neighbours = math.ceil(neighbour_margin * lattice_count)
+        if skin > 0:
+            within = (scheme.r_e + float(neighbour_skin)) * (1 + SKIN_SLACK)
+            max_neighbours = max(max_neighbours, len(lattice_offsets(dim, within)))
     return Scene(
         discretisation=discretisation,
         capacity=capacity,

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 from helpers import brute_force_neighbours, listed
 
+import jaxmps
 from jaxmps.neighbours import (
     Grid,
     NeighbourCache,
@@ -364,3 +365,33 @@ def test_candidates_are_sized_for_fluid_filling_an_empty_part_of_the_domain():
         _within(got.index, filled, scene.r_e),
         brute_force_neighbours(filled, np.ones(n, bool), scene.r_e),
     )
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+def test_default_slots_keep_the_skin_of_a_lattice_a_little_denser(dim):
+    """`make_scene`'s default slots hold the skin's pairs of a regular lattice
+    whose spacing shrank by 3 %, so that its lists can be carried (with 64 slots
+    in 3-D, the lattice's 24 pairs at sqrt(6) l0 = 2.45 l0 entered the reach of
+    r_e + skin = 2.4 l0 and every search fell back to the pairs within r_e)."""
+    l0, side = 0.01, 8
+    axes = [np.arange(side) * l0] * dim
+    x = np.stack(np.meshgrid(*axes, indexing="ij"), -1).reshape(-1, dim)
+    scene = jaxmps.make_scene(x, l0, (x.min(0) - 3 * l0, x.max(0) + 3 * l0))
+    squeezed = x.mean(0) + 0.97 * (x - x.mean(0))
+    active = jnp.ones(len(x), bool)
+    nbrs = build(
+        scene.grid,
+        jnp.asarray(squeezed),
+        active,
+        scene.max_neighbours,
+        scene.r_e,
+        scene.neighbour_skin,
+    )
+    assert bool(nbrs.with_skin)
+    assert not bool(nbrs.neighbour_overflow)
+    # The reach does hold more than the lattice's own pairs (56 in 3-D).
+    reach = scene.r_e + scene.neighbour_skin
+    d = np.linalg.norm(squeezed[:, None] - squeezed[None], axis=-1)
+    most = int(((d > 0) & (d < reach)).sum(1).max())
+    assert most == (20 if dim == 2 else 80)
+    assert most <= scene.max_neighbours
