@@ -64,9 +64,7 @@ def make_scene(
             a `jaxmps.schemes` preset, `schemes.standard()` by default.
         capacity: particle slots (>= m); the extra slots form the inactive pool.
         neighbour_margin: `max_neighbours` = ceil(margin x lattice neighbour count),
-            and with a skin at least the regular lattice's pairs within
-            (r_e + skin)(1 + 0.05) (`SKIN_SLACK`; 2-D: 24 slots either way,
-            3-D with r_e = 2.1 l0: 80, not 64).
+            at least the lattice's pairs in reach of the skin (`_slots`: 24, 80).
         candidate_margin: `candidate_capacity` = ceil(margin x the most particles
             in the stencil cells of one particle, initially or in a filled
             regular lattice, whichever is more).
@@ -119,11 +117,7 @@ def make_scene(
         candidate_capacity = _candidates(grid, position, spacing, candidate_margin)
     grid = eqx.tree_at(lambda g: g.candidate_capacity, grid, int(candidate_capacity))
     if max_neighbours is None:
-        lattice_count = len(lattice_offsets(dim, scheme.r_e))
-        max_neighbours = math.ceil(neighbour_margin * lattice_count)
-        if skin > 0:
-            within = (scheme.r_e + float(neighbour_skin)) * (1 + SKIN_SLACK)
-            max_neighbours = max(max_neighbours, len(lattice_offsets(dim, within)))
+        max_neighbours = _slots(dim, scheme.r_e, neighbour_margin, neighbour_skin)
     return Scene(
         discretisation=discretisation,
         capacity=capacity,
@@ -141,6 +135,17 @@ def make_scene(
         time_step=time_step,
         escape_limit=int(escape_limit),
     )
+
+
+def _slots(dim: int, r_e: float, margin: float, skin: float) -> int:
+    """Default neighbour slots (r_e and skin in units of l0): `margin` times the
+    regular lattice's pairs within r_e, and with a skin at least the lattice's
+    pairs within (r_e + skin)(1 + `SKIN_SLACK`)."""
+    slots = math.ceil(margin * len(lattice_offsets(dim, r_e)))
+    if skin > 0:
+        within = (r_e + float(skin)) * (1 + SKIN_SLACK)
+        slots = max(slots, len(lattice_offsets(dim, within)))
+    return slots
 
 
 def _candidates(grid: Grid, position: np.ndarray, spacing: float, margin: float) -> int:
