@@ -315,3 +315,26 @@ def test_scene_setting_picks_the_preconditioner():
         spacing=0.02, scheme="high_accuracy", preconditioner="jacobi"
     )
     assert isinstance(high.scene.solver.preconditioner, Jacobi)
+
+
+def test_slotwise_product_of_a_large_system_equals_the_gathered_row_sums(rng):
+    # Systems of at least SLOTWISE_PARTICLES rows (2-D slot counts) sum the product
+    # slot by slot; it must be the same matrix as the (n, k) gather summed by rows.
+    from jaxmps.fluid import _precondition as pc
+
+    n, k = pc.SLOTWISE_PARTICLES, 24
+    index = rng.integers(0, n + 1, size=(n, k)).astype(np.int32)  # n: empty slot
+    off = rng.uniform(0.0, 1.0, size=(n, k)) * (index < n)
+    system = pc.PressureSystem(
+        index=jnp.asarray(index),
+        off=jnp.asarray(off),
+        diag=jnp.asarray(off.sum(axis=1) + 1.0),
+        in_system=jnp.asarray(rng.uniform(size=n) < 0.9),
+    )
+    p = rng.normal(size=n)
+    padded = np.append(p, 0.0)
+    expected = system.diag * p - (off * padded[index]).sum(axis=1)
+    expected = np.where(system.in_system, expected, p)
+    np.testing.assert_allclose(
+        system.matvec(jnp.asarray(p)), expected, rtol=1e-12, atol=1e-12
+    )
