@@ -118,6 +118,20 @@ def last_axis_dot(a: Float[Array, "*batch d"], b: Float[Array, "*batch d"]):
     return sum(a[..., c] * b[..., c] for c in range(a.shape[-1]))
 
 
+def finite_rows(*fields: Array) -> Array:
+    """Whether every entry of each row of the (n,) or (n, d) `fields` is finite,
+    one component at a time (XLA's CPU backend reduces a minor axis of 2 or 3
+    element by element)."""
+    finite = None
+    for field in fields:
+        width = 1 if field.ndim == 1 else field.shape[1]
+        for c in range(width):
+            column = field if field.ndim == 1 else field[:, c]
+            ok = jnp.isfinite(column)
+            finite = ok if finite is None else finite & ok
+    return finite
+
+
 @jax.checkpoint
 def pair_sum(
     coefficient: Float[Array, "n k"], vector: PairVectors

@@ -41,6 +41,7 @@ from jaxtyping import Array, Bool, Float
 from . import fluid, neighbours, operators
 from ._checks import check_compatible
 from ._coupling import Coupling, source_view, visible
+from ._numerics import finite_rows, last_axis_dot
 from ._params import Params
 from ._result import Result, StepInfo, update_result
 from ._scene import Scene
@@ -394,7 +395,7 @@ def _take_out_escaped(
     `Result.nonfinite_state`)."""
     if scene.escape_limit <= 0:
         return state, info
-    finite = jnp.all(jnp.isfinite(state.position), axis=-1)
+    finite = finite_rows(state.position)
     fluid = state.kind == int(Kind.FLUID)
     leaving = outside & state.active & fluid & finite
     escaped = state.escaped + jnp.sum(leaving, dtype=state.escaped.dtype)
@@ -427,24 +428,16 @@ def _record(
     the step's largest acceleration by forces (`forced`: gravity and viscosity,
     and the pressure where it is a force: `pressure_is_force` of the solver). The
     finiteness is checked on the `counted` particles (None: all)."""
-    speed = jnp.sqrt(jnp.sum(new.velocity**2, axis=-1))
+    speed = jnp.sqrt(last_axis_dot(new.velocity, new.velocity))
     courant = jnp.max(jnp.where(mobile, speed, 0.0)) * params.dt / scene.spacing
     # A diagnostic of the dt choice, which is a constant to the gradient (and the
     # norm's derivative at a particle at rest is not finite).
     forced = jax.lax.stop_gradient(forced)
-    forced = jnp.sqrt(jnp.sum(forced**2, axis=-1))
+    forced = jnp.sqrt(last_axis_dot(forced, forced))
     acceleration = jnp.max(jnp.where(mobile, forced, 0.0), initial=0.0)
     viscous = 2 * scene.dim * params.viscosity * params.dt / scene.lam
     checked = new.active if counted is None else new.active & counted
-    finite = jnp.all(
-        jnp.where(
-            checked,
-            jnp.all(jnp.isfinite(new.position), axis=-1)
-            & jnp.all(jnp.isfinite(new.velocity), axis=-1)
-            & jnp.isfinite(new.pressure),
-            True,
-        )
-    )
+    finite = jnp.all(finite_rows(new.position, new.velocity, new.pressure) | ~checked)
     result = new.result
     result = update_result(result, info.cell_overflow, Result.cell_overflow)
     result = update_result(result, info.neighbour_overflow, Result.neighbour_overflow)

@@ -28,6 +28,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Bool, Float, Int
 
+from .._numerics import finite_rows, last_axis_dot
 from ._grid import Grid, stencil
 
 
@@ -69,11 +70,16 @@ def cell_coordinates(
     origin = jnp.asarray(grid.origin, dtype=position.dtype)[None, :]
     rel = (position - origin) / grid.cell_size
     # Non-finite positions are mapped to cell 0 and reported as outside.
-    finite = jnp.all(jnp.isfinite(rel), axis=-1)
+    # Row tests one component at a time (XLA's CPU backend reduces a minor axis of
+    # 2 or 3 element by element).
+    finite = finite_rows(rel)
     rel = jnp.where(finite[:, None], rel, 0.0)
     coords = jnp.floor(rel).astype(jnp.int32)
     upper = jnp.asarray(grid.shape, dtype=jnp.int32)[None, :] - 1
-    outside = jnp.any((coords < 0) | (coords > upper), axis=-1) | ~finite
+    outside = ~finite
+    for axis in range(coords.shape[1]):
+        c = coords[:, axis]
+        outside = outside | (c < 0) | (c > upper[0, axis])
     return jnp.clip(coords, 0, upper), outside
 
 
@@ -314,7 +320,7 @@ def carried_search(
     searches, and the choice stays a branch.
     """
     x = jax.lax.stop_gradient(position)
-    moved = jnp.sum((x - cache.position) ** 2, axis=-1)
+    moved = last_axis_dot(x - cache.position, x - cache.position)
     moved = jnp.max(jnp.where(active, moved, 0.0))
     reusable = cache.valid & jnp.all(active == cache.active) & (4 * moved < skin**2)
     if batch_axis is not None:
