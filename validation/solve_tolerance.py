@@ -1,4 +1,4 @@
-"""Does the pressure solve's tolerance move the standing wave's period? An ensemble.
+"""Does the pressure solve's tolerance move the accuracy? An ensemble.
 
 The semi-implicit solver solves its pressure system to `SemiImplicit.rtol` (default
 1e-9 in float64). A looser tolerance takes fewer CG iterations; whether it costs
@@ -22,6 +22,7 @@ Writes `validation/results/solve_tolerance_<cpu|gpu>.{json,md}` (override with -
 
 import argparse
 import json
+import math
 from pathlib import Path
 
 import jax
@@ -37,11 +38,23 @@ import jaxmps  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
 PERTURBATION = 1e-9  # [m], standard deviation of the fluid positions' offsets
+SCENES = {"standing_wave": "standing_wave", "hydrostatic": "hydrostatic"}
+# What each case measures (`accuracy_vs_cost.run_case`'s record); the first is
+# tabulated per member.
+MEASURES = {
+    "standing_wave": ("rel_period", "final_amplitude"),
+    "hydrostatic": ("noise", "err_probe_y0"),
+}
+LABELS = {
+    "rel_period": "period error",
+    "final_amplitude": "amplitude at the end / A",
+    "noise": "pressure noise (std / reference)",
+    "err_probe_y0": "|mean bottom pressure error|",
+}
 
 
-def _member_case(member: int):
-    """`scenes.standing_wave` with its fluid moved by PERTURBATION (member > 0)."""
-    build = jaxmps.scenes.standing_wave
+def _member_case(build, member: int):
+    """The scene `build` with its fluid moved by PERTURBATION (member > 0)."""
 
     def case(**config):
         out = build(**config)
@@ -55,25 +68,27 @@ def _member_case(member: int):
     return case
 
 
-def run(spacing: float, rtol: float, member: int) -> dict:
+def run(case: str, method: str, spacing: float, rtol: float, member: int) -> dict:
     args = argparse.Namespace(repeats=1, max_timed_s=0.0)
-    acc.METHOD["semi_implicit"] = dict(solver="semi_implicit", rtol=rtol)
-    original = jaxmps.scenes.standing_wave
-    jaxmps.scenes.standing_wave = _member_case(member)
+    original = dict(acc.METHOD)
+    acc.METHOD[method] = {**acc.METHOD[method], "rtol": rtol}
+    scene_name = SCENES[case]
+    build = getattr(jaxmps.scenes, scene_name)
+    setattr(jaxmps.scenes, scene_name, _member_case(build, member))
     try:
-        r = acc.run_case("standing_wave", "semi_implicit", spacing, args)
+        r = acc.run_case(case, method, spacing, args)
     finally:
-        jaxmps.scenes.standing_wave = original
-    return dict(
-        spacing=spacing,
-        rtol=rtol,
-        member=member,
-        rel_period=r["rel_period"],
-        final_amplitude=r["final_amplitude"],
-        run_s=r["run_s_best"],
-        steps=r["n_steps"],
-        result=r["result"],
-    )
+        setattr(jaxmps.scenes, scene_name, build)
+        acc.METHOD.update(original)
+    row = dict(case=case, method=method, spacing=spacing, rtol=rtol, member=member)
+    for key in MEASURES[case]:
+        row[key] = r[key]
+    return {
+        **row,
+        "run_s": r["run_s_best"],
+        "steps": r["n_steps"],
+        "result": r["result"],
+    }
 
 
 def _machine_line(m: dict) -> str:
@@ -84,52 +99,82 @@ def _machine_line(m: dict) -> str:
 def markdown(data: dict) -> str:
     rows = data["rows"]
     out = [
-        "# Pressure-solve tolerance vs the standing wave's period (ensemble), "
-        f"{data['backend']}",
+        "# Pressure-solve tolerance vs accuracy, over an ensemble of perturbed "
+        f"initial states ({data['backend']})",
         "",
         f"- machine: {_machine_line(data['machine'])}",
-        f"- members per (spacing, rtol): {data['members']} (member 0 unperturbed; "
-        f"the others' fluid moved by N(0, {PERTURBATION:g} m), seed = member)",
-        "- case: `accuracy_vs_cost.py`'s standing wave, standard semi-implicit, "
-        "float64; period error against linear theory",
-        "- run time: one call after compiling, taken while other work shared the "
-        "CPU (a rough cost only)",
-        "",
-        "| spacing [m] | rtol | period error per member | mean | std | "
-        "amplitude at the end / A (mean) | run [s] (mean) |",
-        "|---|---|---|---|---|---|---|",
+        f"- members per row: {data['members']} (member 0 unperturbed; the others' "
+        f"fluid moved by N(0, {PERTURBATION:g} m), seed = member)",
+        "- cases: `accuracy_vs_cost.py`'s standing wave (period against linear "
+        "theory) and hydrostatic tank (pressure noise and mean bottom pressure), "
+        "float64",
+        "- run time: one call after compiling (a rough cost only)",
     ]
-    keys = sorted(
-        {(r["spacing"], r["rtol"]) for r in rows}, key=lambda k: (-k[0], k[1])
-    )
-    for spacing, rtol in keys:
-        group = [r for r in rows if (r["spacing"], r["rtol"]) == (spacing, rtol)]
-        errors = np.array([r["rel_period"] for r in group])
-        each = " / ".join(f"{100 * e:+.2f}" for e in errors)
-        amp = np.mean([r["final_amplitude"] for r in group])
-        cost = np.mean([r["run_s"] for r in group])
-        out.append(
-            f"| {spacing:g} | {rtol:g} | {each} % | {100 * errors.mean():+.2f} % | "
-            f"{100 * errors.std(ddof=1):.2f} % | {amp:.3f} | {cost:.1f} |"
-        )
+    for case in dict.fromkeys(r["case"] for r in rows):
+        first, second = MEASURES[case]
+        out += [
+            "",
+            f"## {case}",
+            "",
+            f"| method | spacing [m] | rtol | {LABELS[first]} per member | mean | "
+            f"std | {LABELS[second]} (mean) | run [s] (mean) |",
+            "|---|---|---|---|---|---|---|---|",
+        ]
+        mine = [r for r in rows if r["case"] == case]
+        keys = {(r["method"], r["spacing"], r["rtol"]) for r in mine}
+        for method, spacing, rtol in sorted(keys, key=lambda k: (k[0], -k[1], k[2])):
+            group = [
+                r
+                for r in mine
+                if (r["method"], r["spacing"], r["rtol"]) == (method, spacing, rtol)
+            ]
+            values = np.array([r[first] for r in group])
+            each = " / ".join(f"{100 * v:+.2f}" for v in values)
+            spread = 100 * values.std(ddof=1) if len(values) > 1 else math.nan
+            other = np.mean([r[second] for r in group])
+            cost = np.mean([r["run_s"] for r in group])
+            other = (
+                f"{100 * other:.2f} %"
+                if second != "final_amplitude"
+                else f"{other:.3f}"
+            )
+            out.append(
+                f"| {method} | {spacing:g} | {rtol:g} | {each} % | "
+                f"{100 * values.mean():+.2f} % | {spread:.2f} % | {other} | "
+                f"{cost:.1f} |"
+            )
     return "\n".join(out) + "\n"
 
 
 def main(argv=None):
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument(
+        "--cases", nargs="+", choices=sorted(SCENES), default=["standing_wave"]
+    )
+    p.add_argument(
+        "--methods",
+        nargs="+",
+        choices=["semi_implicit", "high_accuracy"],
+        default=["semi_implicit"],
+    )
     p.add_argument("--spacings", nargs="+", type=float, default=[0.01, 0.005])
     p.add_argument("--rtols", nargs="+", type=float, default=[1e-9, 1e-7, 1e-6])
     p.add_argument("--members", type=int, default=4)
     p.add_argument("--out", type=Path, default=None)
+    p.add_argument("--merge", action="store_true", help="add to the rows at --out")
     a = p.parse_args(argv)
     backend = jax.default_backend()
     out = a.out or HERE / "results" / f"solve_tolerance_{backend}"
     rows = []
-    for spacing in a.spacings:
-        for rtol in a.rtols:
-            for member in range(a.members):
-                rows.append(run(spacing, rtol, member))
-                print(json.dumps(rows[-1]), flush=True)
+    if a.merge and out.with_suffix(".json").exists():
+        rows = json.loads(out.with_suffix(".json").read_text())["rows"]
+    for case in a.cases:
+        for method in a.methods:
+            for spacing in a.spacings:
+                for rtol in a.rtols:
+                    for member in range(a.members):
+                        rows.append(run(case, method, spacing, rtol, member))
+                        print(json.dumps(rows[-1]), flush=True)
     data = dict(
         backend=backend,
         machine=machine_info(),
