@@ -218,13 +218,16 @@ def test_a_coordinator_that_never_answers_ends_in_a_bounded_wait(tmp_path):
 def test_one_run_split_over_devices_equals_one_device():
     """A dam break whose particle arrays are split over four devices (XLA
     partitions the program) ends where the one-device run ends, to round-off;
-    a capacity the device count does not divide is refused."""
+    a capacity the device count does not divide is refused. (The pressure solves
+    converge to round-off, so that only the two programs are compared.)"""
     out = _python(
         """
         import json, jax, numpy as np, pytest, jaxmps
         case = None
         for k in range(200):
-            trial = jaxmps.scenes.dam_break(spacing=0.02 * (1 - 0.001 * k), dt=1e-3)
+            trial = jaxmps.scenes.dam_break(
+                spacing=0.02 * (1 - 0.001 * k), dt=1e-3, rtol=1e-13
+            )
             if trial.scene.capacity % 4 == 0:
                 case = trial
                 break
