@@ -77,9 +77,9 @@ def cell_coordinates(
     coords = jnp.floor(rel).astype(jnp.int32)
     upper = jnp.asarray(grid.shape, dtype=jnp.int32)[None, :] - 1
     outside = ~finite
-    for axis in range(coords.shape[1]):
+    for axis, cells in enumerate(grid.shape):
         c = coords[:, axis]
-        outside = outside | (c < 0) | (c > upper[0, axis])
+        outside = outside | (c < 0) | (c >= cells)
     return jnp.clip(coords, 0, upper), outside
 
 
