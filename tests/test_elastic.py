@@ -233,7 +233,9 @@ def _beam(angle=0.0, layers=4, e=1e6, tip_velocity=0.3, dim=2, dt=5e-4):
     ), turn
 
 
-@pytest.mark.parametrize("dim", [2, 3])
+# The 3-D beam (42 s) runs in the slow tier; the default tier keeps 3-D elastic
+# pairs in the rigid-motion, compression and momentum tests.
+@pytest.mark.parametrize("dim", [2, pytest.param(3, marks=pytest.mark.slow)])
 def test_a_turned_beam_bends_the_same_way_turned(dim):
     """Rotation invariance of the whole step: the beam turned by 30 degrees, with
     gravity turned, moves as the unturned beam's motion turned (to round-off)."""
