@@ -7,12 +7,21 @@
    periods (between the first and last upward crossings of the run's mean) is the
    static deflection, the crossings' spacing the period. Both against
    Euler-Bernoulli (`scenes.cantilever_theory`; plane strain in 2-D).
-2. Stability map: the 8-layer beam (E = 1e6 Pa, g = 0.981) with dt = 1 ms split
+2. Large deflections (`--large`): the 8-layer beam, softened so that its
+   Euler-Bernoulli tip drop under its weight is 10 %, 30 % and 50 % of its length,
+   brought to rest by kinetic relaxation (every velocity zeroed whenever the tip's
+   speed passes a peak), against the inextensible elastica of a cantilever under
+   its own weight (solved here by shooting). The model's own small-deflection
+   softness (its drop over Euler-Bernoulli's at the default E, relaxed the same
+   way) is divided out, so the row tests the geometric nonlinearity, and the
+   chord from the clamp's face to the tip (reach and drop) against the elastica's
+   tests that the beam stays bounded and does not stretch.
+3. Stability map: the 8-layer beam (E = 1e6 Pa, g = 0.981) with dt = 1 ms split
    into fewer and fewer sub-steps (`add_elastic_bodies(substeps=...)`, the limit
    check lifted), for nu = 0, 0.3, 0.48: whether 0.15 s runs without a failure and
    stays bounded, in units of h c_s / l0 and h c_p / l0.
 
-Run: python validation/elastic_cantilever.py [--layers 4 8 16] [--map]
+Run: python validation/elastic_cantilever.py [--layers 4 8 16] [--large] [--map]
 (writes results/elastic_cantilever_cpu.{json,md}).
 """
 
@@ -21,7 +30,9 @@ import dataclasses
 import json
 import time
 
+import equinox as eqx
 import jax
+import jax.numpy as jnp
 import numpy as np
 from _common import HERE, machine_info
 
@@ -75,6 +86,147 @@ def convergence_row(layers, periods):
     )
 
 
+def elastica(load: float, points: int = 2000) -> tuple[float, float]:
+    """The inextensible elastica of a cantilever under its own weight: its tip's
+    drop and reach over L for load = q L^3 / (E' I) (Euler-Bernoulli's drop is
+    load / 8). With s the arc length over L and theta the slope,
+    theta'' = -load (1 - s) cos(theta), theta(0) = 0, theta'(1) = 0; shooting on
+    theta'(0) in [0, load / 2] (bisection), classical Runge-Kutta in s."""
+    h = 1.0 / points
+
+    def shoot(k):
+        def rhs(s, y):
+            return np.array([y[1], -load * (1 - s) * np.cos(y[0])])
+
+        y, s, drop, reach = np.array([0.0, k]), 0.0, 0.0, 0.0
+        for _ in range(points):
+            k1 = rhs(s, y)
+            k2 = rhs(s + h / 2, y + h / 2 * k1)
+            k3 = rhs(s + h / 2, y + h / 2 * k2)
+            k4 = rhs(s + h, y + h * k3)
+            new = y + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+            # Simpson on the interval's ends and midpoint slope
+            mid = 0.5 * (y[0] + new[0]) + h / 8 * (y[1] - new[1])
+            drop += h / 6 * (np.sin(y[0]) + 4 * np.sin(mid) + np.sin(new[0]))
+            reach += h / 6 * (np.cos(y[0]) + 4 * np.cos(mid) + np.cos(new[0]))
+            y, s = new, s + h
+        return y[1], drop, reach
+
+    low, high = 0.0, 0.5 * load
+    for _ in range(60):
+        k = 0.5 * (low + high)
+        if shoot(k)[0] > 0:
+            high = k
+        else:
+            low = k
+    _, drop, reach = shoot(0.5 * (low + high))
+    return drop, reach
+
+
+def relaxed(case, max_periods=12.0, chunks_per_period=40):
+    """The tip's static (x, y) displacement by kinetic relaxation: the run goes
+    on in chunks of a 40th of the Euler-Bernoulli period, and whenever the tip's
+    speed over a chunk falls below the last chunk's (a kinetic-energy peak passed)
+    every velocity and spin is zeroed. Stops when the tip moves by less than
+    1e-5 L over a period, or after `max_periods`."""
+    theory = jaxmps.scenes.cantilever_theory(case.config)
+    length = case.config["length"]
+    chunk = theory["period"] / chunks_per_period
+    probes = {p.name: p for p in case.probes}
+
+    def tip(state):
+        return np.array(
+            [float(probes[n](case.scene, state)) for n in ("tip_x", "tip_y")]
+        )
+
+    def rest(state):
+        e = state.elastic
+        velocity = state.velocity.at[e.index].set(0.0)
+        elastic = eqx.tree_at(
+            lambda e: (e.velocity, e.angular_velocity),
+            e,
+            (jnp.zeros_like(e.velocity), jnp.zeros_like(e.angular_velocity)),
+        )
+        return eqx.tree_at(
+            lambda s: (s.velocity, s.elastic), state, (velocity, elastic)
+        )
+
+    state, start = case.state, time.perf_counter()
+    history, speed, resets = [tip(state)], 0.0, 0
+    for i in range(int(max_periods * chunks_per_period)):
+        out = jaxmps.simulate(
+            case.scene,
+            case.params,
+            state,
+            times=[float(state.time) + chunk],
+            throw=False,
+        )
+        if out.result != jaxmps.Result.successful:
+            return dict(result=str(out.result), tip=history[-1], resets=resets)
+        state = out.state
+        history.append(tip(state))
+        new_speed = np.linalg.norm(history[-1] - history[-2]) / chunk
+        if new_speed < speed:
+            state, resets, new_speed = rest(state), resets + 1, 0.0
+        speed = new_speed
+        if i >= chunks_per_period:
+            moved = np.linalg.norm(history[-1] - history[-1 - chunks_per_period])
+            if moved < 1e-5 * length:
+                break
+    return dict(
+        result="successful",
+        tip=history[-1],
+        resets=resets,
+        periods=len(history) / chunks_per_period,
+        wall_s=time.perf_counter() - start,
+    )
+
+
+def large_rows(drops=(0.1, 0.3, 0.5), layers=8):
+    """The beam at the default E (its small-deflection softness) and softened to
+    each Euler-Bernoulli drop / L in `drops`, relaxed to rest, against the
+    elastica."""
+    base = dict(spacing=0.02 / layers)
+    c = jaxmps.scenes.elastic_cantilever(**base).config
+    length, t, nu = c["length"], c["thickness"], c["poisson_ratio"]
+    q = c["solid_density"] * c["gravity"] * t
+    inertia = t**3 / 12
+
+    def modulus(load):
+        return (1 - nu**2) * q * length**3 / (load * inertia)
+
+    rows, softness = [], None
+    loads = [q * length**3 / (c["youngs_modulus"] / (1 - nu**2) * inertia)]
+    loads += [8 * d for d in drops]
+    for load in loads:
+        case = jaxmps.scenes.elastic_cantilever(**base, youngs_modulus=modulus(load))
+        got = relaxed(case)
+        drop, reach = elastica(load)
+        tip_x, tip_y = got["tip"]
+        model_drop = -tip_y / length
+        if softness is None:
+            softness = model_drop / drop
+        rows.append(
+            dict(
+                load=load,
+                youngs_modulus=modulus(load),
+                euler_bernoulli=load / 8,
+                elastica_drop=drop,
+                elastica_reach=reach,
+                drop=model_drop,
+                reach=1 + tip_x / length,
+                softness=model_drop / drop,
+                drop_over_softness=model_drop / softness,
+                error=model_drop / softness / drop - 1,
+                chord=float(np.hypot(1 + tip_x / length, tip_y / length)),
+                elastica_chord=float(np.hypot(reach, drop)),
+                **{k: v for k, v in got.items() if k != "tip"},
+            )
+        )
+        print(json.dumps(rows[-1]), flush=True)
+    return rows
+
+
 def stability_row(nu, substeps, t_end=0.15):
     """The 8-layer beam at E = 1e6 Pa, g = 0.981, dt = 1 ms in `substeps`."""
     overrides = dict(
@@ -106,7 +258,7 @@ def stability_row(nu, substeps, t_end=0.15):
     )
 
 
-def markdown(rows, stability, info):
+def markdown(rows, stability, info, large=()):
     lines = [
         "# Elastic cantilever against Euler-Bernoulli",
         "",
@@ -127,6 +279,31 @@ def markdown(rows, stability, info):
             f" {1e3 * r['deflection_theory']:.3f} |"
             f" {100 * r['deflection_error']:+.1f} % | {r['wall_s']:.0f} |"
         )
+    if large:
+        lines += [
+            "",
+            "## Large deflections (8 layers, relaxed to rest, against the elastica)",
+            "",
+            "load = q L^3 / (E' I); 'softness' is the model's drop over the",
+            "elastica's; 'drop / softness' divides out the first row's (the default",
+            "E), leaving the geometric nonlinearity; chord = |clamp face to tip| / L.",
+            "",
+            "| load | E [Pa] | Euler-Bernoulli drop / L | elastica drop / L |"
+            " model drop / L | softness | drop / softness | error | model reach / L |"
+            " elastica reach / L | model chord | elastica chord | resets | periods |"
+            " result |",
+            "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
+        ]
+        for r in large:
+            lines.append(
+                f"| {r['load']:.3f} | {r['youngs_modulus']:.3g} |"
+                f" {r['euler_bernoulli']:.4f} | {r['elastica_drop']:.4f} |"
+                f" {r['drop']:.4f} | {r['softness']:.3f} |"
+                f" {r['drop_over_softness']:.4f} | {100 * r['error']:+.1f} % |"
+                f" {r['reach']:.4f} | {r['elastica_reach']:.4f} | {r['chord']:.4f} |"
+                f" {r['elastica_chord']:.4f} | {r['resets']} |"
+                f" {r.get('periods', float('nan')):.1f} | {r['result']} |"
+            )
     if stability:
         lines += [
             "",
@@ -148,26 +325,33 @@ def main():
     parser.add_argument("--layers", nargs="*", type=int, default=[4, 8, 16])
     parser.add_argument("--periods", type=float, default=3.2)
     parser.add_argument("--map", action="store_true", help="run the stability map")
+    parser.add_argument(
+        "--large", action="store_true", help="run the large-deflection rows"
+    )
     parser.add_argument("--out", default="elastic_cantilever_cpu")
     args = parser.parse_args()
     jax.config.update("jax_enable_x64", True)
     path = HERE / "results" / args.out
-    rows, stability = [], []
+    rows, stability, large = [], [], []
     if path.with_suffix(".json").exists():
         old = json.loads(path.with_suffix(".json").read_text())
         rows = [r for r in old["rows"] if r["layers"] not in args.layers]
         stability = [] if args.map else old.get("stability", [])
+        large = [] if args.large else old.get("large", [])
     info = machine_info()
 
     def write():
         rows.sort(key=lambda r: r["layers"])
-        data = {"machine": info, "rows": rows, "stability": stability}
+        data = {"machine": info, "rows": rows, "stability": stability, "large": large}
         path.with_suffix(".json").write_text(json.dumps(data, indent=1))
-        path.with_suffix(".md").write_text(markdown(rows, stability, info))
+        path.with_suffix(".md").write_text(markdown(rows, stability, info, large))
 
     for layers in args.layers:
         rows.append(convergence_row(layers, args.periods))
         print(json.dumps(rows[-1]), flush=True)
+        write()
+    if args.large:
+        large.extend(large_rows())
         write()
     if args.map:
         for nu, counts in (
