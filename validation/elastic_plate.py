@@ -14,10 +14,12 @@ no water): wet / dry isolates the coupling to the fluid, dry / theory the
 particle model's own error (which falls with the layers through the thickness:
 4, 8).
 
-Run: python validation/elastic_plate.py
-(writes results/elastic_plate_cpu.{json,md})
+Run: python validation/elastic_plate.py [--cases dry4 dry8 wet4 wet8]
+(default: the first three; writes results/elastic_plate_cpu.{json,md}, keeping the
+existing file's rows that were not run again).
 """
 
+import argparse
 import dataclasses
 import json
 import pathlib
@@ -90,17 +92,40 @@ def run(water, spacing, t_end, every=5):
     )
 
 
+CASES = {  # (water, spacing, t_end)
+    "dry4": (False, 0.0025, 0.3),
+    "dry8": (False, 0.00125, 0.3),
+    "wet4": (True, 0.0025, 0.25),
+    "wet8": (True, 0.00125, 0.25),
+}
+
+
 def main():
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument(
+        "--cases", nargs="+", choices=list(CASES), default=["dry4", "dry8", "wet4"]
+    )
+    args = parser.parse_args()
     jax.config.update("jax_enable_x64", True)
-    rows = []
-    for water, spacing, t_end in (
-        (False, 0.0025, 0.3),
-        (False, 0.00125, 0.3),
-        (True, 0.0025, 0.25),
-    ):
-        rows.append(run(water, spacing, t_end))
+    path = HERE / "results" / "elastic_plate_cpu.json"
+    chosen = [CASES[name] for name in args.cases]
+    rows, info = [], machine_info()
+    if path.exists():
+        previous = json.loads(path.read_text())
+        old = [
+            {"host": previous["machine"].get("cpu_model", "?"), **r}
+            for r in previous["rows"]
+        ]
+        rows = [
+            r
+            for r in old
+            if (r["water"], r["spacing"]) not in {(w, sp) for w, sp, _ in chosen}
+        ]
+    for water, spacing, t_end in chosen:
+        rows.append({"host": info.get("cpu_model", "?"), **run(water, spacing, t_end)})
         print(rows[-1], flush=True)
-    out = dict(machine=machine_info(), shear_factor=SHEAR, rows=rows)
+    rows.sort(key=lambda r: (r["water"], -r["spacing"]))
+    out = dict(machine=info, shear_factor=SHEAR, rows=rows)
     (HERE / "results" / "elastic_plate_cpu.json").write_text(json.dumps(out, indent=1))
     lines = [
         "# Clamped plate under a water column (float64, CPU)",
@@ -111,8 +136,8 @@ def main():
         "",
         "| load | layers | particles | dt [s] | sub-steps | static [mm] "
         "| / theory | half the first peak [mm] | / theory | period [s] "
-        "| oscillation [mm] | wall [s] | result |",
-        "|---|---|---|---|---|---|---|---|---|---|---|---|---|",
+        "| oscillation [mm] | wall [s] | result | host |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for r in rows:
         lines.append(
@@ -122,14 +147,18 @@ def main():
             f"| {1e3 * r['first_swing']:.3f} | {r['first_swing'] / r['theory']:.3f} "
             f"| {r['period']:.4f} "
             f"| {1e3 * r['range'][0]:.2f}-{1e3 * r['range'][1]:.2f} "
-            f"| {r['wall_s']:.0f} | {r['result']} |"
+            f"| {r['wall_s']:.0f} | {r['result']} | {r['host']} |"
         )
-    wet = next(r for r in rows if r["water"])
-    dry = next(r for r in rows if not r["water"] and r["spacing"] == wet["spacing"])
+    lines.append("")
+    for wet in (r for r in rows if r["water"]):
+        dry = [r for r in rows if not r["water"] and r["spacing"] == wet["spacing"]]
+        if dry:
+            ratio, swing = (wet[k] / dry[0][k] for k in ("static", "first_swing"))
+            lines.append(
+                f"Wet / dry at {wet['layers']} layers: {ratio:.3f} (fit), "
+                f"{swing:.3f} (first swing)."
+            )
     lines += [
-        "",
-        f"Wet / dry at {wet['layers']} layers: {wet['static'] / dry['static']:.3f} "
-        f"(fit), {wet['first_swing'] / dry['first_swing']:.3f} (first swing).",
         "",
         f"Machine: {out['machine']}",
     ]
