@@ -55,7 +55,14 @@ def test_displaced_depth_probe_counts_archimedes_on_the_lattice():
     assert float(probe(dry.scene, dry.state)) == pytest.approx(0.0, abs=1e-9)
 
 
-@pytest.mark.parametrize("ratio", [0.3, 0.6, 0.8])
+@pytest.mark.parametrize(
+    "ratio",
+    [
+        pytest.param(0.3, marks=pytest.mark.slow),
+        0.6,
+        pytest.param(0.8, marks=pytest.mark.slow),
+    ],
+)
 def test_floating_box_draft_matches_archimedes(ratio):
     """The water a box of 10 x 5 particles (l0 = 2 cm) displaces, in water two box
     heights deep, is within 0.3 l0 of Archimedes' (validation/floating_draft.py,

@@ -201,8 +201,9 @@ FIELDS = [
     ("heeled", "rigid.centre_of_mass"),
     ("heeled", "rigid.gyration"),
 ]
-# Cases whose gradient programs take a minute or more to compile: the slow tier.
-SLOW_CASES = ("floating", "heeled")
+# Cases whose gradient programs take about a minute or more to compile (the
+# flume's inflow and outflow, the bodies' stages): the slow tier.
+SLOW_CASES = ("flume", "floating", "heeled")
 
 
 def _loss(scene, params, state, n_steps=6):

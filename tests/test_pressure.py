@@ -193,7 +193,7 @@ def test_discrete_operator_gain_below_stability_bound():
 
 
 def _dense(f, n):
-    return np.asarray(jax.vmap(f)(jnp.eye(n)).T)
+    return np.asarray(jax.jit(jax.vmap(f))(jnp.eye(n)).T)
 
 
 def _lattice_system(dim, size, rng):
