@@ -5,9 +5,11 @@ Per size (`jaxmps.scenes.dam_break` at the spacing giving about that many partic
 walls and dummies included; the column is first advanced 20 steps so that it moves):
 ms per step of a compiled `--steps`-step rollout (best of 2 after a warm-up call,
 compile timed apart), particle-steps/s, CG iterations per step (semi-implicit), and
-the share of the neighbour search in the step (a build jitted alone, times the
-searches a step makes, over the step time: one when the lists are carried from step
-to step, `Scene.neighbour_skin` > 0, the default; two without). The slope is the
+the cost of a neighbour search against the step's (a build jitted alone, times the
+searches a step makes at most, over the step time: one when the lists are carried
+from step to step, `Scene.neighbour_skin` > 0, the default, two without; a step
+with carried lists searches only once a particle has moved half the skin since
+the last search, so above 100 % most steps searched not at all). The slope is the
 least-squares fit of log(ms/step) on log(particles) over all sizes.
 
     python benchmarks/scaling.py                       # float32, 1k-100k, ~10 min
@@ -68,9 +70,9 @@ def measure(solver: str, target: int, steps: int, dim: int = 2) -> dict:
         )
         return nb.index
 
-    # A step searches at its predicted positions; its start reuses the lists
-    # carried from the previous step unless a particle moved by half the skin
-    # (rare: jaxmps.make_scene's `neighbour_skin`), so one search per step.
+    # With carried lists a step searches at most once (at its predicted positions,
+    # when a particle has moved half the skin since the last search: make_scene's
+    # `neighbour_skin`), without them twice: the share is an upper bound.
     searches = 1 if scene.neighbour_skin > 0 else 2
 
     jitted = jax.jit(build)
@@ -136,6 +138,9 @@ def main(argv=None):
         f"- 1-min load average {info['loadavg_1min_start']} at start, "
         f"{info['loadavg_1min_end']} at end",
         f"- {args.steps} steps after 20; best of 2 after a warm-up call",
+        "- build share: one search (jitted alone) per step at most, over the step "
+        "time; a step with carried lists searches only once a particle has moved "
+        "half the skin, so above 100 % most steps did not search",
         "",
         "| solver | particles | ms/step | particle-steps/s | CG it. | "
         "build share | compile [s] |",
