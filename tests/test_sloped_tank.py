@@ -65,3 +65,29 @@ def test_diagonal_slope_walls_hold_water_while_shaken(wall):
 def test_an_unknown_slope_wall_is_refused():
     with pytest.raises(ValueError, match="slope_wall='type3'.*staircase"):
         scenes.sloshing_tank(slope=1.5, spacing=0.05, slope_wall="type3")
+
+
+def test_first_sloshing_mode_released_as_a_standing_wave():
+    """`standing_wave(mode_number=1)` releases cos(pi x / L), the mode a shaken
+    tank of that size resonates in: its linear period is the shaken tank's first
+    resonance (two formulas, seed 001 eqs. 3.4-3.7), the water is the still
+    tank's (the cosine's half wave adds none), and the mode probe reads the
+    released amplitude, the seed's mode 2 (one wavelength) none of it."""
+    length, depth, amplitude, l0 = 0.5, 0.2, 0.03, 0.01
+    first = scenes.standing_wave(
+        mode_number=1, tank_length=length, depth=depth, amplitude=amplitude
+    )
+    shaken = scenes.sloshing_tank(tank_length=length, depth=depth, spacing=l0)
+    assert first.config["linear_period"] == pytest.approx(
+        1 / shaken.config["resonances"][0], rel=1e-12
+    )
+    fluid = np.asarray(first.state.kind) == int(Kind.FLUID)
+    assert fluid.sum() == round(length / l0) * round(depth / l0)
+    probe = {p.name: p for p in first.probes}["mode"]
+    assert float(probe(first.scene, first.state)) == pytest.approx(amplitude, rel=0.1)
+    seed = scenes.standing_wave(tank_length=length, depth=depth, amplitude=amplitude)
+    assert seed.config["mode_number"] == 2
+    two = {p.name: p for p in seed.probes}["mode"]
+    assert abs(float(two(first.scene, first.state))) < 0.1 * amplitude
+    with pytest.raises(ValueError, match="mode_number"):
+        scenes.standing_wave(mode_number=0)

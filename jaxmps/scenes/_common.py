@@ -324,6 +324,7 @@ RULES = {
     "rolling": _NON_NEGATIVE,
     "stiffness": _POSITIVE,
     "contact_capacity": _COUNT,
+    "mode_number": _COUNT,
     "polydispersity": Range(0, 1, open_high=True),
     "seed": Range(0, 2**31 - 1),
     "release_depth": _LENGTH,
@@ -365,6 +366,7 @@ _WHOLE = (
     "block_rows",
     "gauges",
     "pressure_gauges",
+    "mode_number",
 )
 
 

@@ -29,8 +29,8 @@ def natural_frequency(length: float, depth: float, mode: int, gravity: float):
 
 
 def standing_wave_period(length: float, depth: float, gravity: float) -> float:
-    """Linear period of the standing wave eta = A cos(2 pi x / L) cos(omega t):
-    omega^2 = g k tanh(k H), k = 2 pi / L (seed 001 eq. 3.4-3.5)."""
+    """Linear period of the standing wave eta = A cos(2 pi x / L) cos(omega t) of
+    wavelength L: omega^2 = g k tanh(k H), k = 2 pi / L (seed 001 eq. 3.4-3.5)."""
     k = 2 * math.pi / length
     return 2 * math.pi / math.sqrt(gravity * k * math.tanh(k * depth))
 
@@ -46,6 +46,7 @@ STANDING_WAVE = {
     "tank_height": 0.6,
     "depth": 0.5,
     "amplitude": 0.05,
+    "mode_number": 2,
     "gravity": 9.8,
     "spacing": 0.01,
     "dim": 2,
@@ -55,16 +56,20 @@ STANDING_WAVE = {
 
 def standing_wave(**overrides) -> Case:
     """A standing wave released from rest (seed 001 §3.2): water of mean `depth` in
-    a tank of `tank_length`, surface eta0(x) = depth + amplitude cos(2 pi x / L).
+    a tank of `tank_length`, surface eta0(x) = depth + amplitude cos(m pi x / L),
+    m = `mode_number`: 2 (default, the seed's) puts one wavelength in the tank, 1
+    half of one, the tank's first sloshing mode (its free decay: the resonance a
+    shaken tank of that size has).
 
     Probes: `eta_centre`, `eta_left`, `eta_right` (strip-volume elevations over
     the two central columns and the three next to each wall) and `mode` (the
-    amplitude of the cos(2 pi x / L) surface mode from all particles). Linear
+    amplitude of the cos(m pi x / L) surface mode from all particles). Linear
     theory: mode = A cos(omega t), period in `config["linear_period"]`.
     """
     c = resolve("standing_wave", STANDING_WAVE, overrides)
     if int(c["dim"]) != 2:
         raise ValueError("standing_wave is 2-D (dim=2).")
+    m = int(c["mode_number"])
     l0 = c["spacing"]
     length, depth = whole(c["tank_length"], l0), whole(c["depth"], l0)
     height = whole(c["tank_height"], l0)
@@ -74,7 +79,8 @@ def standing_wave(**overrides) -> Case:
             f"amplitude={amp} must lie in [0, min(depth, tank_height - depth))."
         )
     grid = geometry.block([0.0, 0.0], [length, height], l0)
-    surface = depth + amp * np.cos(2 * math.pi * grid[:, 0] / length)
+    k = m * math.pi / length
+    surface = depth + amp * np.cos(k * grid[:, 0])
     fluid = grid[grid[:, 1] < surface]
     walls, wall_kind = _open_tank(c, length, height)
     scene, params, state = _assemble(c, fluid, walls, wall_kind, height, depth)
@@ -84,13 +90,14 @@ def standing_wave(**overrides) -> Case:
         StripLevel("eta_centre", 0.5 * length, 2 * l0, l0, depth),
         StripLevel("eta_left", 0.5 * strip, strip, l0, depth),
         StripLevel("eta_right", length - 0.5 * strip, strip, l0, depth),
-        ModeAmplitude("mode", 2 * math.pi / length, length, l0),
+        ModeAmplitude("mode", k, length, l0),
     )
     config = {
         **c,
+        "mode_number": m,
         "tank_length": length,
         "depth": depth,
-        "linear_period": standing_wave_period(length, depth, c["gravity"]),
+        "linear_period": standing_wave_period(2 * length / m, depth, c["gravity"]),
     }
     return Case(
         name="standing_wave",
