@@ -244,6 +244,7 @@ def test_pair_form_buoyancy_depends_on_where_the_water_lies():
     assert _buoyancy(0.2, "fluid") > 0.9
 
 
+@pytest.mark.slow
 def test_floating_box_rights_itself():
     """Released with a 10 degree heel, a stable box (GM = 4.2 cm) swings back
     through upright and rolls about it with decaying amplitude: each extreme of the

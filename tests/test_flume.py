@@ -229,7 +229,9 @@ def _block_motion(case, out) -> tuple[float, float]:
     return float(np.abs(moved).max()), float(tilt.max())
 
 
-@pytest.mark.parametrize("solver", ["semi_implicit", "explicit"])
+@pytest.mark.parametrize(
+    "solver", ["semi_implicit", pytest.param("explicit", marks=pytest.mark.slow)]
+)
 def test_blocks_rest_in_their_recess_in_still_water(solver):
     """Four rows in the recess, the last one's face against the lip of a scour
     hole, in still water (q -> 0): the bed carries them, none moves by 0.05 l0

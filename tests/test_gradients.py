@@ -73,6 +73,7 @@ def test_rollout_gradient_matches_central_differences(field):
     assert float(g) == pytest.approx(float(fd), rel=1e-4)
 
 
+@pytest.mark.slow
 def test_checkpoint_settings_give_the_same_gradient():
     """Rematerialising blocks, blocks and steps, or nothing changes only memory and
     time: the same value and gradient to round-off (float64)."""
@@ -85,6 +86,10 @@ def test_checkpoint_settings_give_the_same_gradient():
     for c in ("steps", False):
         assert float(out[c][0]) == pytest.approx(float(out[True][0]), rel=1e-12)
         assert float(out[c][1]) == pytest.approx(float(out[True][1]), rel=1e-9)
+
+
+def test_an_unknown_checkpoint_setting_is_refused():
+    scene, params, state = _setup()
     # A ValueError naming the setting; under the test suite's runtime type checks
     # (beartype through jaxtyping) the annotation refuses it first, a TypeError.
     with pytest.raises((ValueError, TypeError), match="checkpoint"):

@@ -402,6 +402,7 @@ def test_a_collapsing_column_spreads_and_comes_to_rest():
     assert runout[-1] == pytest.approx(runout[0], abs=0.005)
 
 
+@pytest.mark.slow
 def test_a_batch_of_frictions_equals_the_single_runs():
     case = _column(t_end=0.05)
     values = jnp.asarray([0.3, 0.8])

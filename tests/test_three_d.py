@@ -62,6 +62,7 @@ def _front(dim):
     return t, np.asarray(tr.saved["front"]) / a
 
 
+@pytest.mark.slow
 def test_quasi_2d_dam_break_in_3d_matches_2d():
     """A 3-D column three particles wide between two walls must collapse like the 2-D
     column (measured within 2 %)."""
