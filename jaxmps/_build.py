@@ -463,6 +463,7 @@ def add_elastic_bodies(
     clamped=None,
     substeps: int | None = None,
     courant: float = bodies.ElasticBodies.courant,
+    surface_correction: bool = bodies.ElasticBodies.surface_correction,
 ) -> tuple[Scene, Params, State]:
     """Turn particles of a built case into elastic bodies (seed 000 §2.5.2),
     unstrained as given.
@@ -484,7 +485,8 @@ def add_elastic_bodies(
         substeps: elastic sub-steps per step; None: the fewest that keep a
             sub-step within `SUBSTEP_MARGIN` (a quarter) of the elastic limit at
             `Params.dt` (`ElasticBodies.time_step_limit`).
-        courant: see `jaxmps.bodies.ElasticBodies` (and its default).
+        courant, surface_correction: see `jaxmps.bodies.ElasticBodies` (and
+            their defaults; surface_correction=False is the seed's model).
 
     Returns:
         The new (scene, params, state).
@@ -525,6 +527,7 @@ def add_elastic_bodies(
         first=0 if scene.rigid is None else scene.rigid.count,
         substeps=int(substeps),
         courant=courant,
+        surface_correction=bool(surface_correction),
         wetted=bool(np.any(fluid)),
     )
     kind = np.array(state.kind)

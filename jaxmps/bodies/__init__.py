@@ -9,6 +9,7 @@ from .._state import RigidState as RigidState
 from ._base import AbstractBodyModel as AbstractBodyModel
 from ._elastic import ElasticBodies as ElasticBodies
 from ._elastic import ElasticResponse as ElasticResponse
+from ._elastic import corrective_matrices as corrective_matrices
 from ._elastic import elastic_response as elastic_response
 from ._elastic import elastic_stress as elastic_stress
 from ._elastic import lame as lame

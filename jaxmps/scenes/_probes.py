@@ -10,7 +10,7 @@ from jaxtyping import Array, Float
 from .._scene import Scene
 from .._state import State
 from .._types import Kind
-from ..bodies import elastic_stress
+from ..bodies import corrective_matrices, elastic_stress
 
 
 class AbstractProbe(eqx.Module):
@@ -455,13 +455,17 @@ class ElasticAmplitude(AbstractProbe):
         if self.field == "pressure":
             return jnp.max(jnp.abs(es.elastic_pressure[index]))
         mu = jnp.full(es.index.shape, self.shear_modulus, es.position.dtype)
+        disc = scene.discretisation
         stress = elastic_stress(
-            scene.discretisation,
+            disc,
             mu,
             es.reference,
             es.position,
             es.rotation,
             es.neighbours,
+            corrective_matrices(disc, es.reference, es.neighbours)
+            if scene.elastic.surface_correction
+            else None,
         )
         return jnp.max(jnp.abs(stress[index, self.axis, self.axis]))
 
