@@ -12,6 +12,9 @@ from helpers import small_tank
 import jaxmps
 
 
+# Slow tier: without jit every primitive compiles on its own (456 of them, ~22 s
+# alone, 44 s beside the other worker), whatever the tank's size.
+@pytest.mark.slow
 def test_jit_equals_no_jit():
     scene, params, state = small_tank()
     jitted, _ = jaxmps.step(scene, params, state)
