@@ -244,7 +244,11 @@ def stability_row(nu, substeps, t_end=0.15):
     case = jaxmps.scenes.elastic_cantilever(**overrides)
     model = case.scene.elastic
     lifted = jaxmps.bodies.ElasticBodies(
-        count=model.count, spacing=model.spacing, substeps=substeps, courant=100.0
+        count=model.count,
+        spacing=model.spacing,
+        substeps=substeps,
+        courant=100.0,
+        pressure_courant=100.0,
     )
     case = dataclasses.replace(
         case, scene=dataclasses.replace(case.scene, elastic=lifted)

@@ -126,23 +126,52 @@ def _current_frame(correction, rotation, dim: int):
     return jnp.einsum("mij,mjk,mlk->mil", turn, correction, turn)
 
 
-def _reference_rotated(rotation, neighbours, r0: PairVectors, dim: int):
-    """R_ij r0_ij for every reference pair: R((theta_i + theta_j)/2) in 2-D; in 3-D
-    the mean of R(q_i) r0 and R(q_j) r0 (averaging quaternions would leave the unit
-    sphere, seed 000 eq. 2.5-60). Either way u_ji = -u_ij."""
+def _pair_rotation(rotation, neighbours, dim: int):
+    """R_ij of every reference pair: R((theta_i + theta_j)/2) in 2-D, as its
+    (cos, sin); in 3-D the mean of R(q_i) and R(q_j) (averaging quaternions would
+    leave the unit sphere, seed 000 eq. 2.5-60), (m, k, d, d). Either way R_ji =
+    R_ij, so u_ji = -u_ij."""
     if dim == 2:
         theta = 0.5 * (rotation[:, :1] + take_rows(rotation[:, 0], neighbours))
-        c, s = jnp.cos(theta), jnp.sin(theta)
-        return (c * r0[0] - s * r0[1], s * r0[0] + c * r0[1])
+        return jnp.cos(theta), jnp.sin(theta)
     own = rot.matrix(rotation, dim)  # (m, d, d)
-    other = take_rows(own, neighbours)  # (m, k, d, d)
-    both = 0.5 * (own[:, None] + other)
-    return tuple(sum(both[:, :, a, b] * r0[b] for b in range(dim)) for a in range(dim))
+    return 0.5 * (own[:, None] + take_rows(own, neighbours))
+
+
+def _turn(turn, vector: PairVectors, transpose: bool = False) -> PairVectors:
+    """R_ij v_ij (R_ij^T v_ij with `transpose`) for every pair."""
+    if isinstance(turn, tuple):
+        c, s = turn
+        s = -s if transpose else s
+        return (c * vector[0] - s * vector[1], s * vector[0] + c * vector[1])
+    dim = len(vector)
+    if transpose:
+        turn = jnp.swapaxes(turn, -1, -2)
+    return tuple(
+        sum(turn[:, :, a, b] * vector[b] for b in range(dim)) for a in range(dim)
+    )
+
+
+def pair_correction(correction, neighbours) -> Float[Array, "m k d d"]:
+    """(C_i + C_j) / 2 of every reference pair, in the reference frame (the
+    corrective matrices of `corrective_matrices`)."""
+    return 0.5 * (correction[:, None] + take_rows(correction, neighbours))
+
+
+def _corrected(pair, turn, u: PairVectors) -> PairVectors:
+    """R_ij C_ij R_ij^T u_ij: the pair's corrective matrix turned with the pair."""
+    local = _turn(turn, u, transpose=True)
+    dim = len(u)
+    local = tuple(
+        sum(pair[:, :, a, b] * local[b] for b in range(dim)) for a in range(dim)
+    )
+    return _turn(turn, local)
 
 
 def _strain(disc: Discretisation, reference, position, rotation, neighbours):
-    """(u, r, g) of every reference pair: the strain displacement u_ij = r_ij -
-    R_ij r0_ij, the current r_ij and w(|r0|) / |r0|^2 (0 on empty slots)."""
+    """(u, r, g, R) of every reference pair: the strain displacement u_ij = r_ij -
+    R_ij r0_ij, the current r_ij, w(|r0|) / |r0|^2 (0 on empty slots) and the
+    pair rotation R_ij (`_pair_rotation`)."""
     m = reference.shape[0]
     listed = neighbours < m
     r0 = tuple(
@@ -151,9 +180,10 @@ def _strain(disc: Discretisation, reference, position, rotation, neighbours):
     distance0 = safe_norm(r0, listed, placeholder=disc.r_e)
     weight = disc.weight(distance0, listed & (distance0 < disc.r_e), disc.r_e)
     r = tuple(jnp.where(listed, o, 0.0) for o in pair_differences(position, neighbours))
-    rotated = _reference_rotated(rotation, neighbours, r0, disc.dim)
+    turn = _pair_rotation(rotation, neighbours, disc.dim)
+    rotated = _turn(turn, r0)
     u = tuple(a - b for a, b in zip(r, rotated, strict=True))
-    return u, r, weight / distance0**2
+    return u, r, weight / distance0**2, turn
 
 
 def elastic_response(
@@ -176,19 +206,22 @@ def elastic_response(
     the reference distances, over the reference neighbours (`m` marks none).
 
     `correction` (`corrective_matrices`, None: the seed's model) replaces u_ij in
-    the 2 mu term (and the spin torques) by C_ij u_ij, C_ij = (R_i C_i R_i^T +
-    R_j C_j R_j^T) / 2: the same for i and j, so momentum and angular momentum
-    stay exact, and the identity inside the body."""
+    the 2 mu term (and the spin torques) by R_ij C_ij R_ij^T u_ij, C_ij = (C_i +
+    C_j) / 2 (`pair_correction`) turned with the pair: the same for i and j, so
+    momentum and angular momentum stay exact, and the identity inside the body."""
+    pair = None if correction is None else pair_correction(correction, neighbours)
+    return _response(
+        disc, lam, mu, density, reference, position, rotation, neighbours, pair
+    )
+
+
+def _response(
+    disc, lam, mu, density, reference, position, rotation, neighbours, pair
+) -> ElasticResponse:
+    """`elastic_response` with the pairs' corrective matrices given (or None)."""
     dim, n0 = disc.dim, disc.n0
-    u, r, g = _strain(disc, reference, position, rotation, neighbours)
-    if correction is not None:
-        own = _current_frame(correction, rotation, dim)
-        both = 0.5 * (own[:, None] + take_rows(own, neighbours))  # (m, k, d, d)
-        shear_u = tuple(
-            sum(both[:, :, a, b] * u[b] for b in range(dim)) for a in range(dim)
-        )
-    else:
-        shear_u = u
+    u, r, g, turn = _strain(disc, reference, position, rotation, neighbours)
+    shear_u = u if pair is None else _corrected(pair, turn, u)
     pressure = -lam * (dim / n0) * jnp.sum(component_dot(u, r) * g, axis=1)
     pair_pressure = 0.5 * (pressure[:, None] + take_rows(pressure, neighbours))
     scale = (2 * dim / n0) / density
@@ -223,7 +256,7 @@ def elastic_stress(
     """The deviatoric stress 2 mu eps_i of each particle [Pa] (the volumetric part,
     -p, is `elastic_response`'s pressure): 2 mu (d/n0) sum u_ij r_ij^T w / |r0|^2,
     times R_i C_i R_i^T with a `correction` (`corrective_matrices`), symmetrised."""
-    u, r, g = _strain(disc, reference, position, rotation, neighbours)
+    u, r, g, _ = _strain(disc, reference, position, rotation, neighbours)
     scale = (disc.dim / disc.n0) * 2 * mu
     rows = [
         [scale * jnp.sum(g * u[a] * r[b], axis=1) for b in range(disc.dim)]
@@ -283,7 +316,8 @@ class ElasticBodies(AbstractBodyModel):
     # Choice: the limit in the shear-wave speed, not the P-wave speed. Measured
     # (validation/elastic_cantilever.py, the stability map: an 8-layer beam, dt
     # split into sub-steps) the onset of instability lies at h c_s / l0 = 0.36-0.45
-    # (nu = 0), 0.39-0.46 (0.3) and 0.29-0.37 (0.48), while in c_p it moves from
+    # (nu = 0), 0.31-0.39 (0.3; 0.39-0.46 without the surface correction) and
+    # 0.29-0.37 (0.48), while in c_p it moves from
     # 0.5-0.6 to 1.5-1.9: the fastest modes are shear and spin ones (the pressure
     # of a checkerboard mode is nil). `add_elastic_bodies` takes half of it by
     # default.
@@ -447,8 +481,10 @@ class ElasticBodies(AbstractBodyModel):
         inertia = rho * disc.volume * disc.spacing**2 / 6.0
         fluid_accel = (velocity[es.index] - es.velocity) / dt
         free = ~es.clamped
-        correction = (
-            corrective_matrices(disc, es.reference, es.neighbours)
+        pair = (
+            pair_correction(
+                corrective_matrices(disc, es.reference, es.neighbours), es.neighbours
+            )
             if self.surface_correction
             else None
         )
@@ -456,8 +492,8 @@ class ElasticBodies(AbstractBodyModel):
         def substep(carry, k):
             x, v, q, spin = carry
             h = jnp.clip(dt - k * full, 0.0, full)
-            response = elastic_response(
-                disc, lam, mu, rho, es.reference, x, q, es.neighbours, correction
+            response = _response(
+                disc, lam, mu, rho, es.reference, x, q, es.neighbours, pair
             )
             accel = fluid_accel + response.acceleration
             v = jnp.where(free[:, None], v + h * accel, 0.0)
