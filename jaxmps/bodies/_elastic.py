@@ -69,13 +69,22 @@ class ElasticResponse(eqx.Module):
     pressure: Float[Array, " m"]
 
 
+def _reference_pairs(disc: Discretisation, reference, neighbours):
+    """(r0, |r0|, w(|r0|)) of every reference pair: r0_ij = 0 and w = 0 on empty
+    slots (`m` marks none), |r0| = r_e there."""
+    listed = neighbours < reference.shape[0]
+    r0 = tuple(
+        jnp.where(listed, o, 0.0) for o in pair_differences(reference, neighbours)
+    )
+    distance = safe_norm(r0, listed, placeholder=disc.r_e)
+    weight = disc.weight(distance, listed & (distance < disc.r_e), disc.r_e)
+    return r0, distance, weight
+
+
 def reference_density(disc: Discretisation, es) -> Float[Array, " m"]:
     """Each elastic particle's number density from its own body unstrained: the
     sum over its reference neighbours of w(|r0_ij|)."""
-    listed = es.neighbours < es.reference.shape[0]
-    r0 = pair_differences(es.reference, es.neighbours)
-    distance = safe_norm(r0, listed, placeholder=disc.r_e)
-    weight = disc.weight(distance, listed & (distance < disc.r_e), disc.r_e)
+    _, _, weight = _reference_pairs(disc, es.reference, es.neighbours)
     return jnp.sum(weight, axis=1)
 
 
@@ -95,14 +104,10 @@ def corrective_matrices(disc: Discretisation, reference, neighbours):
     as inside. Directions with an eigenvalue of A below `CORRECTION_FLOOR` are left
     uncorrected. A fixed property of the reference lattice (no gradient flows
     through it)."""
-    reference = jax.lax.stop_gradient(reference)
-    m = reference.shape[0]
-    listed = neighbours < m
-    r0 = tuple(
-        jnp.where(listed, o, 0.0) for o in pair_differences(reference, neighbours)
+    r0, distance, weight = _reference_pairs(
+        disc, jax.lax.stop_gradient(reference), neighbours
     )
-    distance = safe_norm(r0, listed, placeholder=disc.r_e)
-    g = disc.weight(distance, listed & (distance < disc.r_e), disc.r_e) / distance**2
+    g = weight / distance**2
     dim = disc.dim
     a = jnp.stack(
         [
@@ -118,11 +123,7 @@ def corrective_matrices(disc: Discretisation, reference, neighbours):
 
 def _current_frame(correction, rotation, dim: int):
     """R_i C_i R_i^T: each particle's corrective matrix turned with it."""
-    if dim == 2:
-        c, s = jnp.cos(rotation[:, 0]), jnp.sin(rotation[:, 0])
-        turn = jnp.stack([jnp.stack([c, -s], -1), jnp.stack([s, c], -1)], -2)
-    else:
-        turn = rot.matrix(rotation, dim)
+    turn = rot.matrix(rotation, dim)
     return jnp.einsum("mij,mjk,mlk->mil", turn, correction, turn)
 
 
@@ -172,13 +173,8 @@ def _strain(disc: Discretisation, reference, position, rotation, neighbours):
     """(u, r, g, R) of every reference pair: the strain displacement u_ij = r_ij -
     R_ij r0_ij, the current r_ij, w(|r0|) / |r0|^2 (0 on empty slots) and the
     pair rotation R_ij (`_pair_rotation`)."""
-    m = reference.shape[0]
-    listed = neighbours < m
-    r0 = tuple(
-        jnp.where(listed, o, 0.0) for o in pair_differences(reference, neighbours)
-    )
-    distance0 = safe_norm(r0, listed, placeholder=disc.r_e)
-    weight = disc.weight(distance0, listed & (distance0 < disc.r_e), disc.r_e)
+    listed = neighbours < reference.shape[0]
+    r0, distance0, weight = _reference_pairs(disc, reference, neighbours)
     r = tuple(jnp.where(listed, o, 0.0) for o in pair_differences(position, neighbours))
     turn = _pair_rotation(rotation, neighbours, disc.dim)
     rotated = _turn(turn, r0)
