@@ -16,11 +16,13 @@ from ._dam_break import DEFAULTS as _DAM_BREAK
 from ._dam_break import dam_break as _dam_break
 from ._elastic import ELASTIC_BAR as _ELASTIC_BAR
 from ._elastic import ELASTIC_CANTILEVER as _ELASTIC_CANTILEVER
+from ._elastic import ELASTIC_GATE as _ELASTIC_GATE
 from ._elastic import ELASTIC_PLATE as _ELASTIC_PLATE
 from ._elastic import bar_theory as bar_theory
 from ._elastic import cantilever_theory as cantilever_theory
 from ._elastic import elastic_bar as _elastic_bar
 from ._elastic import elastic_cantilever as _elastic_cantilever
+from ._elastic import elastic_gate as _elastic_gate
 from ._elastic import elastic_plate as _elastic_plate
 from ._elastic import oscillation_mean as oscillation_mean
 from ._elastic import plate_theory as plate_theory
@@ -78,6 +80,7 @@ dam_break = accepts_porous(_dam_break)
 dam_break_box = accepts_porous(_dam_break_box)
 elastic_bar = accepts_porous(_elastic_bar)
 elastic_cantilever = accepts_porous(_elastic_cantilever)
+elastic_gate = accepts_porous(_elastic_gate)
 elastic_plate = accepts_porous(_elastic_plate)
 floating_box = accepts_porous(_floating_box)
 flume = accepts_porous(_flume)
@@ -99,6 +102,7 @@ _REGISTRY = {
     "dam_break_box": (dam_break_box, _DAM_BREAK_BOX),
     "elastic_bar": (elastic_bar, _ELASTIC_BAR),
     "elastic_cantilever": (elastic_cantilever, _ELASTIC_CANTILEVER),
+    "elastic_gate": (elastic_gate, _ELASTIC_GATE),
     "elastic_plate": (elastic_plate, _ELASTIC_PLATE),
     "floating_box": (floating_box, _FLOATING_BOX),
     "flume": (flume, _FLUME),

@@ -331,3 +331,98 @@ def oscillation_mean(times, values) -> tuple[float, float, float]:
             best = (residual, float(coef[0]), 2 * np.pi / omega)
     _, mean, period = best
     return mean, period, span / period
+
+
+ELASTIC_GATE = {
+    "column_width": 0.1,
+    "column_height": 0.14,
+    "length": 0.079,
+    "thickness": 0.005,
+    "gap": 0.0,
+    "floor_length": 0.3,
+    "spacing": 0.00125,
+    "dim": 2,
+    "youngs_modulus": 1.0e7,
+    "poisson_ratio": 0.4,
+    "solid_density": 1100.0,
+    "t_end": 0.4,
+}
+
+
+def elastic_gate(**overrides) -> Case:
+    """Antoci, Gallati & Sibilla (2007): a water column (`column_width` x
+    `column_height`) held by a rubber gate (`length` x `thickness`) that hangs
+    from a rigid wall, clamped at its top, its free end `gap` above the floor; at
+    t = 0 the water, at rest, pushes the gate open and flows out beneath it over
+    a floor `floor_length` long (2-D, plane strain). The wall above the gate is as
+    thick as the gate, or as the walls' layers where those are thicker, and
+    reaches the tank's top.
+
+    Probes: `tip_x`, `tip_y`: the displacement of the gate's free end (the mean
+    of its lowest row of particles) [m], to compare with the experiment's
+    measured free-end displacements. The largest step is within the limit of a
+    wetted elastic body (`ElasticBodies.coupling_courant`).
+    """
+    c = resolve("elastic_gate", ELASTIC_GATE, overrides)
+    l0 = c["spacing"]
+    if int(c["dim"]) != 2:
+        raise ValueError("elastic_gate is a 2-D case (the experiment's); set dim=2.")
+    if c["dt"] == "adaptive" and c["dt_max"] is None:
+        speed = shear_speed(c["youngs_modulus"], c["poisson_ratio"], c["solid_density"])
+        coupling = ElasticBodies.coupling_courant
+        c = {**c, "dt_max": 0.9 * coupling * l0 / float(speed)}
+    width, height = whole(c["column_width"], l0), whole(c["column_height"], l0)
+    length, t = whole(c["length"], l0), whole(c["thickness"], l0)
+    gap = round(c["gap"] / l0) * l0
+    floor = whole(c["floor_length"], l0)
+    layers = boundary_layers(c)
+    clamp = layers * l0
+    top = max(whole(1.2 * height, l0), gap + length + clamp + l0)
+    fluid = geometry.block([0.0, 0.0], [width, height], l0)
+    walls, wall_kind = geometry.tank([0.0, 0.0], [width + t + floor, top], l0, layers)
+    # the gate with its clamped rows, and the wall above it: as thick as the
+    # gate or the walls' layers; a pressure wall on the faces, dummies inside
+    gate = geometry.block([width, gap], [width + t, gap + length + clamp], l0)
+    thick = max(t, clamp)
+    upper = geometry.block([width, gap + length], [width + thick, top], l0)
+    upper = geometry.remove_overlaps(upper, gate, l0)
+    face = (upper[:, 0] < width + l0) | (upper[:, 1] < gap + length + l0)
+    face |= upper[:, 0] > width + thick - l0
+    upper_kind = np.where(face, int(Kind.WALL), int(Kind.DUMMY)).astype(np.int32)
+    position = np.concatenate([fluid, gate, walls, upper])
+    kind = np.concatenate(
+        [
+            np.full(len(fluid) + len(gate), int(Kind.FLUID), np.int32),
+            wall_kind,
+            upper_kind,
+        ]
+    )
+    body = np.full(len(position), -1)
+    body[len(fluid) : len(fluid) + len(gate)] = 0
+    y = position[:, 1]
+    clamped = (body == 0) & (y > gap + length)
+    pad = (layers + 2) * l0
+    domain = (
+        np.array([-pad, -pad]),
+        np.array([width + t + floor + pad, 1.5 * top]),
+    )
+    scene = case_scene(c, position, domain, kind)
+    params = case_params(c, 2, velocity_scale(height, c["gravity"]))
+    state = make_state(scene, position, kind)
+    scene, params, state = _with_bodies(c, scene, params, state, body, clamped)
+    end = (body == 0) & (y < gap + l0)
+    tip = tuple(int(i) for i in np.nonzero(end)[0])
+    probes = tuple(
+        Displacement(name, tip, axis, float(position[list(tip), axis].mean()))
+        for axis, name in enumerate(("tip_x", "tip_y"))
+    )
+    config = {
+        **c,
+        "column_width": width,
+        "column_height": height,
+        "length": length,
+        "thickness": t,
+        "gap": gap,
+        "floor_length": floor,
+    }
+    return Case("elastic_gate", scene, params, state, probes, float(c["t_end"]), config)
