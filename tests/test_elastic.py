@@ -791,7 +791,7 @@ def test_the_rubber_gate_opens_as_a_bent_beam_and_holds_the_water_above_it():
     0.57-0.60 for the bent shapes of a cantilever (0.5 for a flap turning about
     its clamp, more for a beam that stretches; measured 0.57). No water passes
     the wall above the gate. A step beyond the wetted body's limit, and 3-D, are
-    refused."""
+    refused, and so is a gate one particle thick."""
     case = jaxmps.scenes.elastic_gate(spacing=0.0025)
     c = case.config
     kind = np.asarray(case.state.kind)
@@ -829,3 +829,5 @@ def test_the_rubber_gate_opens_as_a_bent_beam_and_holds_the_water_above_it():
         jaxmps.scenes.elastic_gate(spacing=0.0025, dt=1e-4)
     with pytest.raises(ValueError, match="set dim=2"):
         jaxmps.scenes.elastic_gate(spacing=0.0025, dim=3)
+    with pytest.raises(ValueError, match="lower spacing to thickness / 2"):
+        jaxmps.scenes.elastic_gate(spacing=0.005)

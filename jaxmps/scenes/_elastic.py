@@ -361,7 +361,8 @@ def elastic_gate(**overrides) -> Case:
     Probes: `tip_x`, `tip_y`: the displacement of the gate's free end (the mean
     of its lowest row of particles) [m], to compare with the experiment's
     measured free-end displacements. The largest step is within the limit of a
-    wetted elastic body (`ElasticBodies.coupling_courant`).
+    wetted elastic body (`ElasticBodies.coupling_courant`). A spacing that leaves
+    fewer than two particles through the gate is refused (ValueError).
     """
     c = resolve("elastic_gate", ELASTIC_GATE, overrides)
     l0 = c["spacing"]
@@ -373,6 +374,12 @@ def elastic_gate(**overrides) -> Case:
         c = {**c, "dt_max": 0.9 * coupling * l0 / float(speed)}
     width, height = whole(c["column_width"], l0), whole(c["column_height"], l0)
     length, t = whole(c["length"], l0), whole(c["thickness"], l0)
+    if round(t / l0) < 2:
+        raise ValueError(
+            f"spacing={l0:g} m leaves {round(t / l0)} particle through the gate's "
+            f"thickness={c['thickness']:g} m; a gate one particle thick does not "
+            "bend as a beam: lower spacing to thickness / 2 or less."
+        )
     gap = round(c["gap"] / l0) * l0
     floor = whole(c["floor_length"], l0)
     layers = boundary_layers(c)
