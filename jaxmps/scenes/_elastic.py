@@ -244,6 +244,17 @@ def plate_theory(config: dict) -> dict:
     }
 
 
+def _wetted_step(c: dict) -> dict:
+    """The settings with `dt_max` (where adaptive steps leave it unset) within the
+    limit of a wetted elastic body (`ElasticBodies.coupling_courant`), with
+    margin."""
+    if c["dt"] != "adaptive" or c["dt_max"] is not None:
+        return c
+    speed = shear_speed(c["youngs_modulus"], c["poisson_ratio"], c["solid_density"])
+    limit = ElasticBodies.coupling_courant * c["spacing"] / float(speed)
+    return {**c, "dt_max": 0.9 * limit}
+
+
 def elastic_plate(**overrides) -> Case:
     """A water column of `depth` standing on an elastic plate (`span` between the
     tank's walls, `thickness`) clamped at both ends under the walls, air below:
@@ -257,11 +268,7 @@ def elastic_plate(**overrides) -> Case:
     """
     c = resolve("elastic_plate", ELASTIC_PLATE, overrides)
     l0 = c["spacing"]
-    if c["dt"] == "adaptive" and c["dt_max"] is None:
-        # within the limit of a wetted elastic body (`ElasticBodies`), with margin
-        speed = shear_speed(c["youngs_modulus"], c["poisson_ratio"], c["solid_density"])
-        coupling = ElasticBodies.coupling_courant
-        c = {**c, "dt_max": 0.9 * coupling * l0 / float(speed)}
+    c = _wetted_step(c)
     if int(c["dim"]) != 2:
         raise ValueError("elastic_plate is a 2-D case; set dim=2.")
     span, t = whole(c["span"], l0), whole(c["thickness"], l0)
@@ -368,10 +375,7 @@ def elastic_gate(**overrides) -> Case:
     l0 = c["spacing"]
     if int(c["dim"]) != 2:
         raise ValueError("elastic_gate is a 2-D case (the experiment's); set dim=2.")
-    if c["dt"] == "adaptive" and c["dt_max"] is None:
-        speed = shear_speed(c["youngs_modulus"], c["poisson_ratio"], c["solid_density"])
-        coupling = ElasticBodies.coupling_courant
-        c = {**c, "dt_max": 0.9 * coupling * l0 / float(speed)}
+    c = _wetted_step(c)
     width, height = whole(c["column_width"], l0), whole(c["column_height"], l0)
     length, t = whole(c["length"], l0), whole(c["thickness"], l0)
     if round(t / l0) < 2:
