@@ -464,6 +464,9 @@ def add_elastic_bodies(
     substeps: int | None = None,
     courant: float = bodies.ElasticBodies.courant,
     surface_correction: bool = bodies.ElasticBodies.surface_correction,
+    friction: bodies.Coulomb | None = None,
+    mu_static=None,
+    mu_kinetic=None,
 ) -> tuple[Scene, Params, State]:
     """Turn particles of a built case into elastic bodies (seed 000 §2.5.2),
     unstrained as given.
@@ -487,6 +490,11 @@ def add_elastic_bodies(
             `Params.dt` (`ElasticBodies.time_step_limit`).
         courant, surface_correction: see `jaxmps.bodies.ElasticBodies` (and
             their defaults; surface_correction=False is the seed's model).
+        friction: a `jaxmps.bodies.Coulomb` law between the bodies' particles and
+            walls (`ElasticBodies.friction_impulse`), or None for frictionless
+            contact.
+        mu_static, mu_kinetic: the friction coefficients, a scalar or one per
+            body (required with `friction`; mu_kinetic defaults to mu_static).
 
     Returns:
         The new (scene, params, state).
@@ -495,8 +503,9 @@ def add_elastic_bodies(
         ValueError: for body indices that are not 0..b-1, bodies on inactive or
             rigid-body slots, clamped particles outside the bodies, a particle
             with no neighbour of its body within r_e, E or density not positive,
-            nu outside (-1, 0.5), and a `substeps` that leaves `Params.dt` beyond
-            the elastic limit.
+            nu outside (-1, 0.5), a `substeps` that leaves `Params.dt` beyond
+            the elastic limit, `friction` without `mu_static` (or coefficients
+            without `friction`), and a negative coefficient.
     """
     if scene.elastic is not None:
         raise ValueError("This scene already has elastic bodies; add all in one call.")
@@ -509,6 +518,9 @@ def add_elastic_bodies(
     held = _clamped(clamped, ids, scene.capacity)
     elastic_params = _elastic_params(
         params, count, youngs_modulus, poisson_ratio, density
+    )
+    elastic_params = _elastic_friction(
+        elastic_params, count, friction, mu_static, mu_kinetic
     )
     sub = bodies.elastic_state(
         np.array(state.position, np.float64),
@@ -529,6 +541,7 @@ def add_elastic_bodies(
         courant=courant,
         surface_correction=bool(surface_correction),
         wetted=bool(np.any(fluid)),
+        friction=friction,
     )
     kind = np.array(state.kind)
     kind[(ids >= 0) & ~held] = int(Kind.ELASTIC)
@@ -544,6 +557,40 @@ def add_elastic_bodies(
     )
     model.check(new_params, new_state)
     return dataclasses.replace(scene, elastic=model), new_params, new_state
+
+
+def _elastic_friction(
+    elastic: ElasticParams, count: int, friction, mu_static, mu_kinetic
+) -> ElasticParams:
+    """`elastic` with each body's friction coefficients (ValueError for a
+    friction law without mu_static, coefficients without a law, or a negative
+    coefficient)."""
+    if friction is None:
+        if mu_static is not None or mu_kinetic is not None:
+            raise ValueError(
+                "mu_static / mu_kinetic given without a friction law: pass "
+                "friction=jaxmps.bodies.Coulomb() as well (or drop them for "
+                "frictionless contact)."
+            )
+        return elastic
+    if mu_static is None:
+        raise ValueError(
+            "friction needs the static coefficient: give mu_static (a scalar or one "
+            "per body; mu_kinetic defaults to it)."
+        )
+    mu_s = bodies.per_body(mu_static, "mu_static", count)
+    mu_k = (
+        mu_s if mu_kinetic is None else bodies.per_body(mu_kinetic, "mu_kinetic", count)
+    )
+    if np.any(mu_s < 0) or np.any(mu_k < 0):
+        raise ValueError(
+            f"mu_static and mu_kinetic must be >= 0, got {mu_s.tolist()} and "
+            f"{mu_k.tolist()}."
+        )
+    dtype = elastic.density.dtype
+    return dataclasses.replace(
+        elastic, mu_static=jnp.asarray(mu_s, dtype), mu_kinetic=jnp.asarray(mu_k, dtype)
+    )
 
 
 def _substeps(params: Params, elastic: ElasticParams, spacing: float, courant):

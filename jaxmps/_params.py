@@ -23,6 +23,8 @@ VALUE_RULES = {
     "rigid.gyration": "positive",
     "elastic.youngs_modulus": "positive",
     "elastic.density": "positive",
+    "elastic.mu_static": ">= 0",
+    "elastic.mu_kinetic": ">= 0",
     "porous.kappa": "positive",
     "porous.drag": ">= 0",
     "grains.friction": ">= 0",
@@ -206,11 +208,20 @@ class ElasticParams(eqx.Module):
         youngs_modulus: Young's modulus E of each body [Pa], shape (b,).
         poisson_ratio: Poisson's ratio nu of each body, in (-1, 0.5), shape (b,).
         density: density of each body [kg/m^3], shape (b,).
+        mu_static, mu_kinetic: each body's static and kinetic friction
+            coefficients against walls, shape (b,); None when the bodies have no
+            friction law (`ElasticBodies.friction`).
     """
 
     youngs_modulus: Float[Array, " b"] = eqx.field(converter=jnp.asarray)
     poisson_ratio: Float[Array, " b"] = eqx.field(converter=jnp.asarray)
     density: Float[Array, " b"] = eqx.field(converter=jnp.asarray)
+    mu_static: Float[Array, " b"] | None = eqx.field(
+        default=None, converter=_optional_array
+    )
+    mu_kinetic: Float[Array, " b"] | None = eqx.field(
+        default=None, converter=_optional_array
+    )
 
     def __check_init__(self):
         _check_fields(self, "elastic.", "", nested=False)

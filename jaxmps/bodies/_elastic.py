@@ -23,10 +23,12 @@ from .._numerics import (
 from .._params import Params
 from .._result import Result, update_result
 from .._state import State
-from .._types import Positions, Scalar, Velocities
+from .._types import Kind, Positions, Scalar, Velocities
 from ..operators import Discretisation
 from . import rotation as rot
 from ._base import AbstractBodyModel
+from ._friction import Contact, Coulomb, SubmergedWeight
+from ._rigid import _outward, _surface
 
 PairVectors = tuple[Float[Array, "m k"], ...]
 
@@ -301,6 +303,12 @@ class ElasticBodies(AbstractBodyModel):
         surface_correction: whether the shear term carries each particle's
             corrective matrix (`corrective_matrices`); False gives the seed's
             model, whose surface particles are too soft.
+        friction: the Coulomb law between the bodies' particles and walls
+            (`Params.elastic.mu_static`, `mu_kinetic`), or None for frictionless
+            contact (and no friction code compiled). See `advance`.
+        contact_distance: a wall particle closer than this (in units of l0) to a
+            body particle puts that particle in contact (as
+            `RigidBodies.contact_distance`).
     """
 
     name: ClassVar[str] = "elastic"
@@ -326,6 +334,8 @@ class ElasticBodies(AbstractBodyModel):
     # Correcting the elastic pressure as well made it worse (+5.0 % and +3.2 %),
     # and a scalar n_i in place of n0 overshot (-15 %, at every resolution).
     surface_correction: bool = True
+    friction: Coulomb | None = None
+    contact_distance: float = 1.5
     # Choice: a body the fluid touches takes the fluid's pressure once per step,
     # so the step itself (not a sub-step) must resolve its particles' stiffness.
     # Measured (a 4-layer plate under 0.1 m of water, nu = 0.3, E = 2.5e7 Pa):
@@ -350,6 +360,16 @@ class ElasticBodies(AbstractBodyModel):
             raise ValueError("ElasticBodies.coupling_courant must be positive.")
         if not self.pressure_courant > 0:
             raise ValueError("ElasticBodies.pressure_courant must be positive.")
+        if not self.contact_distance > 0:
+            raise ValueError("ElasticBodies.contact_distance must be positive.")
+        if self.friction is not None and isinstance(
+            self.friction.normal, SubmergedWeight
+        ):
+            raise ValueError(
+                "ElasticBodies.friction: the normal force SubmergedWeight is a whole "
+                "body's weight, and elastic friction acts particle by particle; use "
+                "Coulomb(normal=ContactReaction()) (the default) or ContactPressure()."
+            )
 
     def owner(self, state: State) -> Int[Array, " n"]:
         es = state.elastic
@@ -402,6 +422,17 @@ class ElasticBodies(AbstractBodyModel):
                     f"elastic bodies (expected ({b},)). For a batch of values use "
                     "`jaxmps.sweep` or `jax.vmap` over Params."
                 )
+        if self.friction is not None:
+            for name in ("mu_static", "mu_kinetic"):
+                value = getattr(e, name)
+                if value is None or value.shape != (b,):
+                    got = "None" if value is None else f"shape {value.shape}"
+                    raise ValueError(
+                        f"Params.elastic.{name} is {got}, but the elastic bodies "
+                        f"have a friction law: give one coefficient per body (shape "
+                        f"({b},)), e.g. add_elastic_bodies(..., friction=Coulomb(), "
+                        f"mu_static=..., mu_kinetic=...)."
+                    )
         if is_concrete(e.poisson_ratio):
             nu = np.asarray(e.poisson_ratio, np.float64)
             if not np.all((nu > -1) & (nu < 0.5)):
@@ -516,15 +547,87 @@ class ElasticBodies(AbstractBodyModel):
         self, disc: Discretisation, params: Params, state: State, load: FluidLoad
     ) -> State:
         """Take the bodies' particles as the pressure left them (`predict` added
-        the internal forces) and flag a step beyond the elastic limit."""
-        del load
+        the internal forces), less the friction impulses of the particles that
+        touch walls (`friction_impulse`), and flag a step beyond the elastic
+        limit."""
         es = state.elastic
         limit = self.time_step_limit(disc, params, state)
         beyond = params.dt > limit * (1 + 1e-9)
         result = update_result(state.result, beyond, Result.step_too_large)
+        position, velocity = state.position, state.velocity
+        if self.friction is not None:
+            impulse = self.friction_impulse(disc, params, state, load)
+            mass = params.elastic.density[es.body] * disc.volume
+            change = impulse / mass[:, None]
+            velocity = velocity.at[es.index].add(change)
+            position = position.at[es.index].add(params.dt * change)
         elastic = dataclasses.replace(
-            es,
-            position=state.position[es.index],
-            velocity=state.velocity[es.index],
+            es, position=position[es.index], velocity=velocity[es.index]
         )
-        return dataclasses.replace(state, elastic=elastic, result=result)
+        return dataclasses.replace(
+            state, position=position, velocity=velocity, elastic=elastic, result=result
+        )
+
+    def friction_impulse(
+        self, disc: Discretisation, params: Params, state: State, load: FluidLoad
+    ) -> Float[Array, "m d"]:
+        """The friction impulse on each elastic particle this step [N s] (seed 000
+        §2.6 for elastic bodies: friction acts on the surface particles in
+        contact, and the body's stresses carry it inward).
+
+        A free particle with a wall particle (not of an elastic body) within
+        `contact_distance` l0 takes the mean outward normal n of those walls,
+        its own share of the walls' pressure reaction (`FluidLoad.wall_gradient`)
+        as its normal force N (or P_i l0^(d-1) with `ContactPressure`), and its
+        velocity relative to them after the pressure, v_t along the wall. The
+        `Coulomb` law then treats it as a body of mass m = rho l0^d: it sticks
+        (v_t -> 0) where m |v_t| <= mu_s N dt, else loses mu_k N dt / m of v_t.
+
+        # Choice: per particle, not per body. A body's friction is then the sum
+        # of its contacting particles' (at most mu N of the whole contact face),
+        # and where the face sticks and where it slips follows from the stresses
+        # that reach each particle; the seed moves the contacting surface
+        # particles by the corrective displacement and lets the stresses respond,
+        # which this is in velocity form (the position moves by dt times the
+        # velocity change). The impulse acts on the particle alone: no spin.
+        """
+        es, dim, l0 = state.elastic, disc.dim, disc.spacing
+        pairs = load.pairs
+        owner = self.owner(state)
+        solid = (
+            state.active
+            & ((state.kind == int(Kind.WALL)) | (state.kind == int(Kind.DUMMY)))
+            & (owner < 0)
+        )
+        outward = _outward(pairs, jnp.where(solid, 0, -1))
+        wall = solid & (state.kind == int(Kind.WALL))
+        near = (
+            pairs.valid
+            & take_rows(wall, pairs.index)
+            & (pairs.distance < self.contact_distance * l0)
+        )
+        normal, _, wall_velocity = _surface(near, pairs, outward, state.velocity, l0)
+        free = ~es.clamped
+        touching = jnp.any(near, axis=1)[es.index] & free
+        contact = Contact(
+            force=-disc.volume * load.wall_gradient[es.index],
+            normal=normal[es.index],
+            touching=touching,
+            pressure_sum=state.pressure[es.index],
+            arm=jnp.zeros((es.index.shape[0], dim), normal.dtype),
+            wall_velocity=wall_velocity[es.index],
+        )
+        e = params.elastic
+        volume = jnp.full(es.body.shape, disc.volume, normal.dtype)
+        impulse, _ = self.friction(
+            contact,
+            state.velocity[es.index] - contact.wall_velocity,
+            e.density[es.body] * volume,
+            volume,
+            e.mu_static[es.body],
+            e.mu_kinetic[es.body],
+            params,
+            l0,
+            dim,
+        )
+        return jnp.where(touching[:, None], impulse, 0.0)

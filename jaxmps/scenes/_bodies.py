@@ -1,17 +1,26 @@
 """Scenes with rigid bodies: floating box, friction tilt, block impact, and a dam break
 carrying a box (seed 000 §4, §6, §8.4, §8.5)."""
 
+import dataclasses
 import math
 
 import equinox as eqx
+import jax
 import jax.numpy as jnp
 import numpy as np
 
 from .. import geometry
 from .._build import NEIGHBOUR_SKIN, add_elastic_bodies, add_rigid_bodies, make_state
 from .._simulate import simulate
+from .._step import step, with_neighbour_lists, without_neighbour_lists
 from .._types import Kind
-from ..bodies import ContactPressure, ContactReaction, Coulomb, SubmergedWeight
+from ..bodies import (
+    ContactPressure,
+    ContactReaction,
+    Coulomb,
+    SubmergedWeight,
+    pressure_speed,
+)
 from ._case import Case
 from ._common import (
     boundary_layers,
@@ -313,6 +322,10 @@ def floating_box(**overrides) -> Case:
 
 
 FRICTION_TILT = {
+    "body": "rigid",
+    "youngs_modulus": 1.0e6,
+    "poisson_ratio": 0.3,
+    "substeps": None,
     "angle": 20.0,
     "mu_static": 0.5,
     "mu_kinetic": None,
@@ -491,10 +504,21 @@ def friction_tilt(**overrides) -> Case:
     the pair form the tank pushed a block up the slope with 1.5 times its
     buoyancy's share, and it slid at a fifth of the theory.
 
-    Probes: `block_x`, `block_y`, `block_angle`, `block_velocity_x`, `friction_x`,
+    With `body="elastic"` the block is an elastic body (`youngs_modulus`,
+    `poisson_ratio`, `substeps` as in `block_impact`) whose particles touching
+    the floor take the friction (`jaxmps.bodies.ElasticBodies.friction_impulse`);
+    dry only, and `friction_torque` is the rigid block's setting.
+
+    Probes: `block_x`, `block_y`, `block_velocity_x` (the body's mean position and
+    velocity), and for the rigid block `block_angle`, `friction_x`,
     `normal_force` (contact force along the floor normal).
     """
     c = resolve("friction_tilt", FRICTION_TILT, overrides)
+    if c["body"] not in ("rigid", "elastic"):
+        raise ValueError(
+            f"body={c['body']!r} is not a body model of friction_tilt; valid: "
+            "'rigid', 'elastic'."
+        )
     l0, dim = c["spacing"], int(c["dim"])
     a = whole(c["block_size"], l0)
     tall = a if c["block_height"] is None else whole(c["block_height"], l0)
@@ -503,6 +527,15 @@ def friction_tilt(**overrides) -> Case:
         raise ValueError("floor_length must exceed block_size by at least 2 spacings.")
     if c["dt"] == "adaptive" and c["dt_max"] is None:
         c = {**c, "dt_max": 0.002 * l0 / 0.1}
+        if c["body"] == "elastic":
+            c_p = float(
+                pressure_speed(
+                    c["youngs_modulus"],
+                    c["poisson_ratio"],
+                    c["density"] * c["density_ratio"],
+                )
+            )
+            c = {**c, "dt_max": min(c["dt_max"], DRY_CONTACT_COURANT * l0 / c_p)}
     x0 = whole(min(0.5, 0.1 * length), l0)
     across = [a + 4 * l0] if dim == 3 else []
     lower_box = [x0] + ([2 * l0] if dim == 3 else []) + [0.0]
@@ -520,6 +553,16 @@ def friction_tilt(**overrides) -> Case:
     walls, wall_kind = geometry.tank(
         [0.0] * dim, [length] + across + [height], l0, layers=boundary_layers(c)
     )
+    tilted = _tilted_gravity(dim, c["gravity"], float(c["angle"]))
+    domain = _domain([0.0] * dim, [length] + across + [height], l0, max(a, tall))
+    config = {**c, "block_size": a, "block_height": tall, "floor_length": length}
+    if c["body"] == "elastic":
+        if depth > 0:
+            raise ValueError(
+                "water_depth is for the rigid block (body='rigid'); the elastic "
+                "block of friction_tilt stands dry."
+            )
+        return _elastic_tilt(config, friction, box, walls, wall_kind, domain, tilted)
     c = {**c, "body_pressure": _tilt_body_pressure(c, depth)}
     scene, params, state = _body_case(
         {**c, "friction": friction, "pressure": c["body_pressure"]},
@@ -527,13 +570,11 @@ def friction_tilt(**overrides) -> Case:
         box,
         walls,
         wall_kind,
-        _domain([0.0] * dim, [length] + across + [height], l0, max(a, tall)),
+        domain,
         velocity_scale(a, c["gravity"]),
         None,
     )
-    tilted = jnp.asarray(
-        _tilted_gravity(dim, c["gravity"], float(c["angle"])), params.gravity.dtype
-    )
+    tilted = jnp.asarray(tilted, params.gravity.dtype)
     if c["settle"] > 0:
         if depth > 0:  # held by friction under the tilted gravity
             state = _spun_up(scene, params, state, c["settle"], tilted)
@@ -548,10 +589,98 @@ def friction_tilt(**overrides) -> Case:
         BodyValue("friction_x", 0, "friction", 0),
         BodyValue("normal_force", 0, "contact_force", dim - 1),
     )
-    config = {**c, "block_size": a, "block_height": tall, "floor_length": length}
+    config = {**config, "body_pressure": c["body_pressure"]}
     return Case(
         "friction_tilt", scene, params, state, probes, float(c["t_end"]), config
     )
+
+
+# The largest step of an elastic body resting on walls, in l0 / c_p (c_p the
+# P-wave speed). Measured (validation/block_impact.py's elastic block, E = 1e6 Pa,
+# nu = 0.48, falling onto a floor, total kinetic energy after the contact against
+# before): 0.59-0.78 at dt c_p / l0 = 0.09, 1.0-1.9 at 0.47 and 2.5-3.3 at 0.94
+# (the contact through the pressure creates energy), and a 1 m block settled at
+# 1.9 bounced on the floor with reactions from 0.01 to 6.5 M g.
+DRY_CONTACT_COURANT = 0.2
+
+
+@eqx.filter_jit
+def _relax(scene, params, state, steps: int):
+    es = state.elastic
+
+    def energy(s):
+        return jnp.sum(s.velocity[es.index] ** 2)
+
+    def one(carry, _):
+        s, before = carry
+        s, _ = step(scene, params, s)
+        now = energy(s)
+        peak = now < before
+        keep = jnp.where(peak, 0.0, 1.0)
+        elastic = dataclasses.replace(
+            s.elastic,
+            velocity=keep * s.elastic.velocity,
+            angular_velocity=keep * s.elastic.angular_velocity,
+        )
+        s = dataclasses.replace(
+            s, velocity=s.velocity.at[es.index].multiply(keep), elastic=elastic
+        )
+        return (s, jnp.where(peak, 0.0, now)), None
+
+    return jax.lax.scan(one, (state, energy(state)), None, length=steps)[0][0]
+
+
+def _relaxed(scene, params, state, duration):
+    """The elastic bodies' state after `duration` s of kinetic damping (dynamic
+    relaxation): steps under `params`, every elastic velocity and spin zeroed at
+    each step where the bodies' kinetic energy has fallen since the step before
+    (a peak just passed). The bodies end near their static equilibrium, at rest;
+    the clock is set back to 0.
+
+    # Choice: the seed's elastic model has no damping, so a block settled by
+    # plain steps keeps the vertical oscillation of its sudden loading (measured:
+    # the floor's reaction on a 1 m block, E = 1e6 Pa, dt = 2e-4 s, swinging
+    # between 0.12 and 1.7 M g in the 0.1 s after a 0.4 s settle), and friction
+    # in proportion to that reaction is not the friction of a block at rest."""
+    steps = max(1, round(duration / float(params.dt)))
+    state = _relax(scene, params, with_neighbour_lists(scene, state), steps)
+    state = without_neighbour_lists(state)
+    return eqx.tree_at(
+        lambda s: (s.time, s.step),
+        state,
+        (jnp.zeros_like(state.time), jnp.zeros_like(state.step)),
+    )
+
+
+def _elastic_tilt(c, friction, box, walls, wall_kind, domain, tilted) -> Case:
+    """`friction_tilt` with an elastic block: relaxed to rest (`_relaxed`) under
+    the tilted gravity's normal component, then the gravity tilted."""
+    dim = box.shape[1]
+    scene, params, state = _elastic_block(
+        c,
+        box,
+        walls,
+        wall_kind,
+        domain,
+        np.zeros(dim),
+        friction=friction,
+        mu_static=c["mu_static"],
+        mu_kinetic=c["mu_kinetic"],
+        speed=velocity_scale(c["block_size"], c["gravity"]),
+    )
+    tilted = jnp.asarray(tilted, params.gravity.dtype)
+    if c["settle"] > 0:
+        normal = params.gravity.at[0].set(0.0).at[-1].set(tilted[-1])
+        state = _relaxed(
+            scene, eqx.tree_at(lambda p: p.gravity, params, normal), state, c["settle"]
+        )
+    params = eqx.tree_at(lambda p: p.gravity, params, tilted)
+    probes = (
+        ElasticValue("block_x", 0, "centre", 0),
+        ElasticValue("block_y", 0, "centre", dim - 1),
+        ElasticValue("block_velocity_x", 0, "velocity", 0),
+    )
+    return Case("friction_tilt", scene, params, state, probes, float(c["t_end"]), c)
 
 
 BLOCK_STACK = {
@@ -762,14 +891,19 @@ def block_impact(**overrides) -> Case:
     return Case("block_impact", scene, params, state, probes, float(c["t_end"]), config)
 
 
-def _elastic_block(config, box, walls, wall_kind, domain, velocity):
+def _elastic_block(
+    config, box, walls, wall_kind, domain, velocity, speed=None, **friction
+):
     """Scene, params and state for one elastic block moving at `velocity` among
-    walls."""
+    walls (`speed`: the velocity scale, the block's speed if None; `friction`:
+    `add_elastic_bodies`' friction arguments)."""
     dim = box.shape[1]
     position = np.concatenate([box, walls])
     kind = np.concatenate([np.full(len(box), int(Kind.FLUID), np.int32), wall_kind])
     scene = _body_scene(config, position, domain, kind)
-    params = case_params(config, dim, max(float(np.abs(velocity).max()), 1e-9))
+    if speed is None:
+        speed = max(float(np.abs(velocity).max()), 1e-9)
+    params = case_params(config, dim, speed)
     moving = np.zeros_like(position)
     moving[: len(box)] = velocity
     state = make_state(scene, position, kind, velocity=moving)
@@ -784,6 +918,7 @@ def _elastic_block(config, box, walls, wall_kind, domain, velocity):
         poisson_ratio=config["poisson_ratio"],
         density=config["density"] * config["density_ratio"],
         substeps=None if substeps is None else int(substeps),
+        **friction,
     )
 
 
