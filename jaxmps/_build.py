@@ -467,6 +467,7 @@ def add_elastic_bodies(
     friction: bodies.Coulomb | None = None,
     mu_static=None,
     mu_kinetic=None,
+    contact: str = "auto",
 ) -> tuple[Scene, Params, State]:
     """Turn particles of a built case into elastic bodies (seed 000 §2.5.2),
     unstrained as given.
@@ -495,6 +496,10 @@ def add_elastic_bodies(
             contact.
         mu_static, mu_kinetic: the friction coefficients, a scalar or one per
             body (required with `friction`; mu_kinetic defaults to mu_static).
+        contact: how the bodies meet walls (`ElasticBodies.contact`):
+            "pressure" (through the pressure, as the seed), "push" (a contact
+            force in the elastic sub-steps), or "auto": "push" in a scene
+            without fluid, "pressure" with it.
 
     Returns:
         The new (scene, params, state).
@@ -533,6 +538,8 @@ def add_elastic_bodies(
     if substeps is None:
         substeps = _substeps(params, elastic_params, scene.spacing, courant)
     fluid = active & (np.asarray(state.kind) == int(Kind.FLUID)) & (ids < 0)
+    if contact == "auto":
+        contact = "pressure" if np.any(fluid) else "push"
     model = bodies.ElasticBodies(
         count=count,
         spacing=scene.spacing,
@@ -542,6 +549,7 @@ def add_elastic_bodies(
         surface_correction=bool(surface_correction),
         wetted=bool(np.any(fluid)),
         friction=friction,
+        contact=contact,
     )
     kind = np.array(state.kind)
     kind[(ids >= 0) & ~held] = int(Kind.ELASTIC)

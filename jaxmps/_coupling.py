@@ -58,6 +58,11 @@ class Coupling(eqx.Module):
             body particles and their drag on the fluid, from the last step),
             added to the prediction of mobile particles as dt force / density;
             None: none, shape (n, d).
+        apart: 1 for body particles whose contact with walls is the body
+            model's own (`ElasticBodies.contact = "push"`), 2 for the walls and
+            dummies they may touch, 0 elsewhere: the pressure leaves the pairs
+            of a 1 and a 2 out of its source and its force (`detached`); None:
+            none, shape (n,).
         between_bodies: whether the pressure stage splits out the part of the
             pair form that other bodies exert (`FluidLoad.body_gradient`, which
             friction between bodies needs); static.
@@ -73,6 +78,7 @@ class Coupling(eqx.Module):
     hidden: Bool[Array, " n"] | None = None
     packing: Float[Array, " n"] | None = None
     force: Float[Array, "n d"] | None = None
+    apart: Int[Array, " n"] | None = None
     between_bodies: bool = eqx.field(static=True, default=False)
     pressed: bool = eqx.field(static=True, default=False)
 
@@ -85,6 +91,15 @@ class Coupling(eqx.Module):
         """Pairs (i, j) of two particles of one body."""
         partner = take_rows(self.owner + 1, pairs.index) - 1  # sentinel reads -1
         return (self.owner[:, None] >= 0) & (partner == self.owner[:, None])
+
+    def detached(self, pairs: Pairs) -> Bool[Array, "n k"]:
+        """Pairs (i, j) of a body particle that makes its own wall contact and a
+        wall (`apart`), either way round; all False without such bodies."""
+        if self.apart is None:
+            return jnp.zeros(pairs.index.shape, bool)
+        partner = take_rows(self.apart, pairs.index)
+        own = self.apart[:, None]
+        return ((own == 1) & (partner == 2)) | ((own == 2) & (partner == 1))
 
     def without_internal(self, pairs: Pairs) -> Pairs:
         """`pairs` with zero weight between two particles of one body (for the
@@ -105,7 +120,7 @@ class Coupling(eqx.Module):
         if self.reference_density is None:
             return pairs, number_density(pairs)
         held = self.reference_density >= 0
-        internal = self.internal(pairs) & held[:, None]
+        internal = (self.internal(pairs) & held[:, None]) | self.detached(pairs)
         seen = eqx.tree_at(
             lambda p: (p.valid, p.weight, p.offset),
             pairs,

@@ -69,6 +69,9 @@ class ElasticState(eqx.Module):
         angular_velocity: its spin [rad/s], shape (m, a).
         elastic_pressure: its elastic pressure -lambda eps_vol in the last step
             [Pa], shape (m,).
+        contact_force: the mean force the walls' contact push exerted on it in
+            the last step [N] (zero unless `ElasticBodies.contact` is "push"),
+            shape (m, d).
     """
 
     index: Int[Array, " m"]
@@ -81,6 +84,7 @@ class ElasticState(eqx.Module):
     rotation: Float[Array, "m q"]
     angular_velocity: Float[Array, "m a"]
     elastic_pressure: Float[Array, " m"]
+    contact_force: Float[Array, "m d"]
 
 
 class GrainState(eqx.Module):

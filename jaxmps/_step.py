@@ -88,7 +88,7 @@ def _step(
     for model in scene.body_models:
         with jax.named_scope(model.name):
             state, u_star, x_star = model.predict(
-                disc, params, state, u_star, x_star, reference_dt
+                disc, params, state, u_star, x_star, reference_dt, pairs=pairs_k
             )
 
     with jax.named_scope("neighbours"):

@@ -553,39 +553,46 @@ def test_a_vmapped_batch_of_moduli_equals_single_runs():
 
 
 def _impact(dt, **overrides):
+    """The block impact's wall impulse, the body's momentum change and its
+    largest kinetic energy after first touching, over the initial one."""
     case = jaxmps.scenes.block_impact(
         body="elastic", dt=dt, spacing=0.25, t_end=0.4, **overrides
     )
     n = round(0.4 / dt)
+    probes = jaxmps.scenes.observe_probes(case.probes)
+
+    def observe(scene, state):
+        return {**probes(scene, state), "ke": jnp.sum(state.elastic.velocity**2)}
+
     out = jaxmps.simulate(
-        case.scene,
-        case.params,
-        case.state,
-        n_steps=n,
-        save_every=1,
-        observe=jaxmps.scenes.observe_probes(case.probes),
+        case.scene, case.params, case.state, n_steps=n, save_every=1, observe=observe
     )
-    wall = float(np.sum(np.asarray(out.saved["wall_force"])) * dt)
+    force = np.asarray(out.saved["wall_force"])
+    wall = float(np.sum(force) * dt)
     mass = case.config["density"] * case.config["block_size"] ** 2
     body = mass * (float(out.saved["block_velocity_y"][-1]) + 1.0)
-    return wall, body
+    energy = np.asarray(out.saved["ke"])
+    return wall, body, float(energy.max() / energy[0])
 
 
 def test_an_elastic_block_hits_a_wall_with_an_impulse_that_barely_depends_on_dt():
     """Seed 000 §3.2.3 (Table 3.2-4) on a coarser lattice (l0 = 0.25 m, 100
     particles): the 2.5 m block at 1 m/s, E = 1e6 Pa, nu = 0.48, one elastic
-    sub-step per step as in the seed. The impulse on the wall and the body's
-    momentum change at dt = 1e-3 and 2.5e-3 s stay within [0.9, 1.2] of those at
-    2.5e-4 s (the seed: 1.07-1.14; its rigid block up to 2.45) and between the
-    plastic and elastic bounds rho A v = 6.25 and 12.5 kN s/m (the body's; the
-    wall's, a sum of particle pressures, may exceed it a little). dt = 1e-2 s at
-    the seed's l0 = 0.1 m is refused (the seed found it unstable)."""
-    base_wall, base_body = _impact(2.5e-4, substeps=1)
-    for dt in (1e-3, 2.5e-3):
-        wall, body = _impact(dt, substeps=1)
-        assert 0.9 <= wall / base_wall <= 1.2, (dt, wall, base_wall)
+    sub-step per step as in the seed, meeting the floor by the contact push (the
+    default for a dry body). At dt = 2.5e-4, 1e-3 and 2.5e-3 s (dt c_p / l0 =
+    0.09 to 0.94) the impulse on the wall equals the body's momentum change
+    (the push is the only force between them), stays within [0.9, 1.2] of that
+    at 2.5e-4 s (the seed: 1.07-1.14; its rigid block up to 2.45) and between
+    the plastic and elastic bounds rho A v = 6.25 and 12.5 kN s/m, and the
+    block never holds more kinetic energy than it came with. dt = 1e-2 s at the
+    seed's l0 = 0.1 m is refused (the seed found it unstable)."""
+    base_wall, base_body, _ = _impact(2.5e-4, substeps=1)
+    for dt in (2.5e-4, 1e-3, 2.5e-3):
+        wall, body, energy = _impact(dt, substeps=1)
+        assert wall == pytest.approx(body, rel=1e-6)
         assert 0.9 <= body / base_body <= 1.2, (dt, body, base_body)
         assert 6.25e3 < body < 12.5e3, body
+        assert energy <= 1.0 + 1e-9, (dt, energy)
     with pytest.raises(ValueError, match=r"Params.dt = 0.01 s is beyond .*substeps"):
         jaxmps.scenes.block_impact(body="elastic", dt=1e-2, substeps=1)
 

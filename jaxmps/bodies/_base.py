@@ -10,7 +10,7 @@ from .._coupling import Coupling, FluidLoad
 from .._params import Params
 from .._state import State
 from .._types import Positions, Scalar, Velocities
-from ..operators import Discretisation
+from ..operators import Discretisation, Pairs
 
 
 class AbstractBodyModel(eqx.Module):
@@ -59,13 +59,15 @@ class AbstractBodyModel(eqx.Module):
         velocity: Velocities,
         position: Positions,
         reference_dt: Scalar | None = None,
+        pairs: Pairs | None = None,
     ) -> tuple[State, Velocities, Positions]:
         """The tentative velocities u* and positions r* of the model's particles
         with its bodies' internal forces added, before the pressure stage (which
         then holds what they push against); by default unchanged. `velocity` and
         `position` are the fluid stages' u* and r* = r^k + dt u*; `reference_dt`
-        the largest step (`Params.dt` of the run; `params.dt` is this step's)."""
-        del disc, params, reference_dt
+        the largest step (`Params.dt` of the run; `params.dt` is this step's);
+        `pairs` the pair geometry at the step's start, r^k."""
+        del disc, params, reference_dt, pairs
         return state, velocity, position
 
     @abc.abstractmethod

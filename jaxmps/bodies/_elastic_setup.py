@@ -88,4 +88,5 @@ def elastic_state(
         rotation=rot.identity(dim, index.size, dtype),
         angular_velocity=jnp.zeros((index.size, rot.spin_size(dim)), dtype),
         elastic_pressure=jnp.zeros((index.size,), dtype),
+        contact_force=jnp.zeros((index.size, dim), dtype),
     )

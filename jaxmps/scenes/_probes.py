@@ -413,7 +413,9 @@ class Displacement(AbstractProbe):
 
 class ElasticValue(AbstractProbe):
     """The mean over an elastic body's particles of their position (`field`
-    "centre") or velocity ("velocity"), component `axis`."""
+    "centre") or velocity ("velocity"), or the sum of the walls' contact push on
+    them in the last step ("contact_force" [N], `ElasticBodies.contact` "push"),
+    component `axis`."""
 
     name: str
     body: int
@@ -421,15 +423,23 @@ class ElasticValue(AbstractProbe):
     axis: int = 0
 
     def __check_init__(self):
-        if self.field not in ("centre", "velocity"):
-            raise ValueError('ElasticValue.field must be "centre" or "velocity".')
+        if self.field not in ("centre", "velocity", "contact_force"):
+            raise ValueError(
+                'ElasticValue.field must be "centre", "velocity" or "contact_force".'
+            )
 
     def __call__(self, scene: Scene, state: State):
         del scene
         es = state.elastic
-        value = es.position if self.field == "centre" else es.velocity
+        value = {
+            "centre": es.position,
+            "velocity": es.velocity,
+            "contact_force": es.contact_force,
+        }[self.field]
         member = es.body == self.body
         total = jnp.sum(jnp.where(member, value[:, self.axis], 0.0))
+        if self.field == "contact_force":
+            return total
         return total / jnp.maximum(jnp.sum(member), 1)
 
 
