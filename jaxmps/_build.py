@@ -498,8 +498,9 @@ def add_elastic_bodies(
             body (required with `friction`; mu_kinetic defaults to mu_static).
         contact: how the bodies meet walls (`ElasticBodies.contact`):
             "pressure" (through the pressure, as the seed), "push" (a contact
-            force in the elastic sub-steps), or "auto": "push" in a scene
-            without fluid, "pressure" with it.
+            force in the elastic sub-steps), or "auto": "push" in a scene with
+            walls and no fluid, else "pressure" (with nothing to push against
+            it costs nothing).
 
     Returns:
         The new (scene, params, state).
@@ -539,7 +540,9 @@ def add_elastic_bodies(
         substeps = _substeps(params, elastic_params, scene.spacing, courant)
     fluid = active & (np.asarray(state.kind) == int(Kind.FLUID)) & (ids < 0)
     if contact == "auto":
-        contact = "pressure" if np.any(fluid) else "push"
+        solid = np.isin(np.asarray(state.kind), [int(Kind.WALL), int(Kind.DUMMY)])
+        walls = active & solid & (ids < 0)
+        contact = "push" if np.any(walls) and not np.any(fluid) else "pressure"
     model = bodies.ElasticBodies(
         count=count,
         spacing=scene.spacing,

@@ -95,8 +95,9 @@ def test_the_slide_has_the_gradient_of_finite_differences_in_mu_kinetic():
 
 def test_elastic_friction_settings_are_refused_with_the_setting_named():
     """A friction law without mu_static, coefficients without a law, a negative
-    coefficient, a whole body's normal force (SubmergedWeight), a dry-only
-    elastic tilt in water and an unknown body model."""
+    coefficient, a whole body's normal force (SubmergedWeight), an unknown
+    contact model, a dry-only elastic tilt in water and an unknown body model;
+    and which contact a body gets by default."""
     case = jaxmps.scenes.block_impact(body="elastic", dt=1e-4, t_end=0.01)
     scene = dataclasses.replace(case.scene, elastic=None)
     body = np.where(np.asarray(case.state.elastic.index) >= 0, 0, -1)
@@ -122,6 +123,12 @@ def test_elastic_friction_settings_are_refused_with_the_setting_named():
         build(friction=Coulomb(), mu_static=0.5, mu_kinetic=-0.1)
     with pytest.raises(ValueError, match="SubmergedWeight"):
         build(friction=Coulomb(normal=SubmergedWeight()), mu_static=0.5)
+    with pytest.raises(ValueError, match="ElasticBodies.contact must be"):
+        build(contact="sticky")
+    # dry among walls: the contact push; with water: through the pressure
+    assert build()[0].elastic.contact == "push"
+    assert build(contact="pressure")[0].elastic.contact == "pressure"
+    assert jaxmps.scenes.elastic_gate().scene.elastic.contact == "pressure"
     built = build(friction=Coulomb(), mu_static=[0.4], mu_kinetic=0.3)
     assert np.allclose(built[1].elastic.mu_static, 0.4)
     assert np.allclose(built[1].elastic.mu_kinetic, 0.3)

@@ -280,10 +280,10 @@ class ElasticBodies(AbstractBodyModel):
     that acceleration is held; the
     pressure then projects them with the fluid, its source seeing the body rigid
     within itself (`Coupling.reference_density`): it acts across the body's
-    surface only, as the water's pressure and as contact with walls and other
-    bodies. Clamped particles are wall particles of the fluid that belong to a
-    body: they hold the body and take part in its stresses at their reference
-    positions.
+    surface only, as the water's pressure and as contact with other bodies, and
+    with walls unless `contact` is "push". Clamped particles are wall particles
+    of the fluid that belong to a body: they hold the body and take part in its
+    stresses at their reference positions.
 
     Attributes:
         count: number of bodies b.
