@@ -436,10 +436,10 @@ class ElasticBodies(AbstractBodyModel):
             & (self.owner(state) < 0)
         )
 
-    def _walls(self, disc: Discretisation, state: State, pairs):
-        """Each particle's wall surface within `contact_distance` (the facing
-        walls' normal, the gap to their plane, their mean velocity;
-        `_wall_surface`), and whether it has one."""
+    def _wall_partners(self, disc: Discretisation, state: State, pairs):
+        """The walls' outward normals (`_outward`) and the pairs of each
+        particle with a wall particle (of no elastic body) within
+        `contact_distance`."""
         solid = self._solid(state)
         outward = _outward(pairs, jnp.where(solid, 0, -1))
         wall = solid & (state.kind == int(Kind.WALL))
@@ -448,6 +448,13 @@ class ElasticBodies(AbstractBodyModel):
             & take_rows(wall, pairs.index)
             & (pairs.distance < self.contact_distance * disc.spacing)
         )
+        return outward, close
+
+    def _walls(self, disc: Discretisation, state: State, pairs):
+        """Each particle's wall surface within `contact_distance` (the facing
+        walls' normal, the gap to their plane, their mean velocity;
+        `_wall_surface`), and whether it has one."""
+        outward, close = self._wall_partners(disc, state, pairs)
         normal, gap, v_wall = _wall_surface(
             close, pairs, outward, state.velocity, disc.spacing
         )
@@ -699,14 +706,7 @@ class ElasticBodies(AbstractBodyModel):
         """
         es, dim, l0 = state.elastic, disc.dim, disc.spacing
         pairs = load.pairs
-        solid = self._solid(state)
-        outward = _outward(pairs, jnp.where(solid, 0, -1))
-        wall = solid & (state.kind == int(Kind.WALL))
-        near = (
-            pairs.valid
-            & take_rows(wall, pairs.index)
-            & (pairs.distance < self.contact_distance * l0)
-        )
+        outward, near = self._wall_partners(disc, state, pairs)
         normal, _, wall_velocity = _surface(near, pairs, outward, state.velocity, l0)
         free = ~es.clamped
         touching = jnp.any(near, axis=1)[es.index] & free
