@@ -437,26 +437,27 @@ class ElasticBodies(AbstractBodyModel):
         )
 
     def _wall_partners(self, disc: Discretisation, state: State, pairs):
-        """The walls' outward normals (`_outward`) and the pairs of each
-        particle with a wall particle (of no elastic body) within
-        `contact_distance`."""
+        """The walls' outward normals (`_outward`, every row), the elastic
+        particles' rows of `pairs`, and in them the pairs with a wall particle
+        (of no elastic body) within `contact_distance`, shape (m, k)."""
         solid = self._solid(state)
         outward = _outward(pairs, jnp.where(solid, 0, -1))
         wall = solid & (state.kind == int(Kind.WALL))
+        rows = jax.tree.map(lambda a: a[state.elastic.index], pairs)
         close = (
-            pairs.valid
-            & take_rows(wall, pairs.index)
-            & (pairs.distance < self.contact_distance * disc.spacing)
+            rows.valid
+            & take_rows(wall, rows.index)
+            & (rows.distance < self.contact_distance * disc.spacing)
         )
-        return outward, close
+        return outward, rows, close
 
     def _walls(self, disc: Discretisation, state: State, pairs):
-        """Each particle's wall surface within `contact_distance` (the facing
-        walls' normal, the gap to their plane, their mean velocity;
-        `_wall_surface`), and whether it has one."""
-        outward, close = self._wall_partners(disc, state, pairs)
+        """Each elastic particle's wall surface within `contact_distance` (the
+        facing walls' normal, the gap to their plane, their mean velocity;
+        `_wall_surface`), and whether it has one, shape (m, ...)."""
+        outward, rows, close = self._wall_partners(disc, state, pairs)
         normal, gap, v_wall = _wall_surface(
-            close, pairs, outward, state.velocity, disc.spacing
+            close, rows, outward, state.velocity, disc.spacing
         )
         return normal, gap, v_wall, jnp.any(close, axis=1)
 
@@ -589,8 +590,7 @@ class ElasticBodies(AbstractBodyModel):
         push = None
         if self.contact == "push":
             normal, gap, v_wall, near = self._walls(disc, state, pairs)
-            normal, gap = normal[es.index], gap[es.index]
-            v_wall, near = v_wall[es.index], near[es.index] & free
+            near = near & free
             mass = rho * disc.volume
 
             def push(x, v, k):
@@ -706,20 +706,19 @@ class ElasticBodies(AbstractBodyModel):
         """
         es, dim, l0 = state.elastic, disc.dim, disc.spacing
         pairs = load.pairs
-        outward, near = self._wall_partners(disc, state, pairs)
-        normal, _, wall_velocity = _surface(near, pairs, outward, state.velocity, l0)
-        free = ~es.clamped
-        touching = jnp.any(near, axis=1)[es.index] & free
+        outward, rows, near = self._wall_partners(disc, state, pairs)
+        normal, _, wall_velocity = _surface(near, rows, outward, state.velocity, l0)
+        touching = jnp.any(near, axis=1) & ~es.clamped
         force = -disc.volume * load.wall_gradient[es.index]
         if self.contact == "push":
             force = es.contact_force
         contact = Contact(
             force=force,
-            normal=normal[es.index],
+            normal=normal,
             touching=touching,
             pressure_sum=state.pressure[es.index],
             arm=jnp.zeros((es.index.shape[0], dim), normal.dtype),
-            wall_velocity=wall_velocity[es.index],
+            wall_velocity=wall_velocity,
         )
         e = params.elastic
         volume = jnp.full(es.body.shape, disc.volume, normal.dtype)
