@@ -517,10 +517,7 @@ def add_elastic_bodies(
         raise ValueError("This scene already has elastic bodies; add all in one call.")
     active = np.asarray(state.active)
     ids, count = bodies.body_indices(body, scene.capacity, active)
-    if scene.rigid is not None and np.any(
-        (ids >= 0) & (np.asarray(state.rigid.body) >= 0)
-    ):
-        raise ValueError("body assigns rigid-body particles to an elastic body.")
+    _refuse_rigid_members(scene, state, ids)
     held = _clamped(clamped, ids, scene.capacity)
     elastic_params = _elastic_params(
         params, count, youngs_modulus, poisson_ratio, density
@@ -538,11 +535,6 @@ def add_elastic_bodies(
     )
     if substeps is None:
         substeps = _substeps(params, elastic_params, scene.spacing, courant)
-    fluid = active & (np.asarray(state.kind) == int(Kind.FLUID)) & (ids < 0)
-    if contact == "auto":
-        solid = np.isin(np.asarray(state.kind), [int(Kind.WALL), int(Kind.DUMMY)])
-        walls = active & solid & (ids < 0)
-        contact = "push" if np.any(walls) and not np.any(fluid) else "pressure"
     model = bodies.ElasticBodies(
         count=count,
         spacing=scene.spacing,
@@ -550,24 +542,50 @@ def add_elastic_bodies(
         substeps=int(substeps),
         courant=courant,
         surface_correction=bool(surface_correction),
-        wetted=bool(np.any(fluid)),
         friction=friction,
-        contact=contact,
+        **_surroundings(state, ids, contact),
     )
+    new_params = dataclasses.replace(params, elastic=elastic_params)
+    new_state = _with_elastic(state, ids, held, sub)
+    model.check(new_params, new_state)
+    return dataclasses.replace(scene, elastic=model), new_params, new_state
+
+
+def _refuse_rigid_members(scene: Scene, state: State, ids: np.ndarray) -> None:
+    """ValueError where an elastic body takes a rigid body's particles."""
+    if scene.rigid is not None and np.any(
+        (ids >= 0) & (np.asarray(state.rigid.body) >= 0)
+    ):
+        raise ValueError("body assigns rigid-body particles to an elastic body.")
+
+
+def _with_elastic(state: State, ids, held, sub) -> State:
+    """`state` with the elastic sub-state `sub`: the bodies' free particles
+    `Kind.ELASTIC`, the clamped ones `Kind.WALL` and at rest."""
     kind = np.array(state.kind)
     kind[(ids >= 0) & ~held] = int(Kind.ELASTIC)
     kind[held] = int(Kind.WALL)
     velocity = np.array(state.velocity)
     velocity[held] = 0.0
-    new_params = dataclasses.replace(params, elastic=elastic_params)
-    new_state = dataclasses.replace(
+    return dataclasses.replace(
         state,
         kind=jnp.asarray(kind, state.kind.dtype),
         velocity=jnp.asarray(velocity, state.position.dtype),
         elastic=sub,
     )
-    model.check(new_params, new_state)
-    return dataclasses.replace(scene, elastic=model), new_params, new_state
+
+
+def _surroundings(state: State, ids: np.ndarray, contact: str) -> dict:
+    """`ElasticBodies.wetted` (fluid particles share the scene) and `contact`,
+    "auto" resolved: the push where there are walls outside the bodies and no
+    fluid, else the pressure."""
+    outside = np.asarray(state.active) & (ids < 0)
+    kind = np.asarray(state.kind)
+    fluid = np.any(outside & (kind == int(Kind.FLUID)))
+    if contact == "auto":
+        walls = outside & np.isin(kind, [int(Kind.WALL), int(Kind.DUMMY)])
+        contact = "push" if np.any(walls) and not fluid else "pressure"
+    return {"wetted": bool(fluid), "contact": contact}
 
 
 def _elastic_friction(

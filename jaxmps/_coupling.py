@@ -120,7 +120,9 @@ class Coupling(eqx.Module):
         if self.reference_density is None:
             return pairs, number_density(pairs)
         held = self.reference_density >= 0
-        internal = (self.internal(pairs) & held[:, None]) | self.detached(pairs)
+        internal = self.internal(pairs) & held[:, None]
+        if self.apart is not None:
+            internal = internal | self.detached(pairs)
         seen = eqx.tree_at(
             lambda p: (p.valid, p.weight, p.offset),
             pairs,

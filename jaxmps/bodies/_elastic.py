@@ -28,7 +28,7 @@ from ..operators import Discretisation
 from . import rotation as rot
 from ._base import AbstractBodyModel
 from ._friction import Contact, Coulomb, SubmergedWeight
-from ._rigid import _contact_magnitude, _outward, _surface, _wall_surface
+from ._rigid import _contact_magnitude, _outward, _wall_surface
 
 PairVectors = tuple[Float[Array, "m k"], ...]
 
@@ -436,10 +436,11 @@ class ElasticBodies(AbstractBodyModel):
             & (self.owner(state) < 0)
         )
 
-    def _wall_partners(self, disc: Discretisation, state: State, pairs):
-        """The walls' outward normals (`_outward`, every row), the elastic
-        particles' rows of `pairs`, and in them the pairs with a wall particle
-        (of no elastic body) within `contact_distance`, shape (m, k)."""
+    def _walls(self, disc: Discretisation, state: State, pairs):
+        """Each elastic particle's wall surface (walls of no elastic body within
+        `contact_distance`): the facing walls' normal, the gap to their plane,
+        their mean velocity (`_wall_surface`, as the rigid bodies' contact), and
+        whether it has one, shape (m, ...)."""
         solid = self._solid(state)
         outward = _outward(pairs, jnp.where(solid, 0, -1))
         wall = solid & (state.kind == int(Kind.WALL))
@@ -449,17 +450,38 @@ class ElasticBodies(AbstractBodyModel):
             & take_rows(wall, rows.index)
             & (rows.distance < self.contact_distance * disc.spacing)
         )
-        return outward, rows, close
-
-    def _walls(self, disc: Discretisation, state: State, pairs):
-        """Each elastic particle's wall surface within `contact_distance` (the
-        facing walls' normal, the gap to their plane, their mean velocity;
-        `_wall_surface`), and whether it has one, shape (m, ...)."""
-        outward, rows, close = self._wall_partners(disc, state, pairs)
         normal, gap, v_wall = _wall_surface(
             close, rows, outward, state.velocity, disc.spacing
         )
         return normal, gap, v_wall, jnp.any(close, axis=1)
+
+    def _wall_push(self, disc: Discretisation, state: State, pairs, rho, full):
+        """The contact push's acceleration of each elastic particle as a function
+        of its sub-step position, velocity and sub-step number (see `contact`):
+        the facing walls' surface at the step's start, carried along with the
+        particle's and the walls' motion."""
+        es = state.elastic
+        normal, gap, v_wall, near = self._walls(disc, state, pairs)
+        near = near & ~es.clamped
+        mass = rho * disc.volume
+
+        def push(x, v, k):
+            # the gap along the wall's normal as the particle and wall move
+            moved = jnp.sum((x - es.position - k * full * v_wall) * normal, -1)
+            depth = jnp.where(near, disc.spacing - (gap + moved), 0.0)
+            v_n = jnp.sum((v - v_wall) * normal, -1)  # > 0: leaving
+            force = _contact_magnitude(
+                self.contact_stiffness,
+                self.contact_damping,
+                full,
+                mass,
+                jnp.maximum(depth, 0.0),
+                v_n,
+            )
+            force = jnp.where(depth > 0, force, 0.0)
+            return (force / mass)[:, None] * normal
+
+        return push
 
     def time_step_limit(
         self, disc: Discretisation, params: Params, state: State
@@ -587,27 +609,11 @@ class ElasticBodies(AbstractBodyModel):
             else None
         )
 
-        push = None
-        if self.contact == "push":
-            normal, gap, v_wall, near = self._walls(disc, state, pairs)
-            near = near & free
-            mass = rho * disc.volume
-
-            def push(x, v, k):
-                # the gap along the wall's normal as the particle and wall move
-                moved = jnp.sum((x - es.position - k * full * v_wall) * normal, -1)
-                depth = jnp.where(near, disc.spacing - (gap + moved), 0.0)
-                v_n = jnp.sum((v - v_wall) * normal, -1)  # > 0: leaving
-                force = _contact_magnitude(
-                    self.contact_stiffness,
-                    self.contact_damping,
-                    full,
-                    mass,
-                    jnp.maximum(depth, 0.0),
-                    v_n,
-                )
-                force = jnp.where(depth > 0, force, 0.0)
-                return (force / mass)[:, None] * normal
+        push = (
+            self._wall_push(disc, state, pairs, rho, full)
+            if self.contact == "push"
+            else None
+        )
 
         def substep(carry, k):
             x, v, q, spin, pushed = carry
@@ -683,7 +689,8 @@ class ElasticBodies(AbstractBodyModel):
         contact, and the body's stresses carry it inward).
 
         A free particle with a wall particle (not of an elastic body) within
-        `contact_distance` l0 takes the mean outward normal n of those walls,
+        `contact_distance` l0 takes the facing walls' normal n (`_walls`, the
+        push's),
         as its normal force N the walls' contact push over the step
         (`ElasticState.contact_force`; with `contact="pressure"` its share of
         the walls' pressure reaction, `FluidLoad.wall_gradient`, or P_i
@@ -705,10 +712,8 @@ class ElasticBodies(AbstractBodyModel):
         # impulse acts on the particle alone: no spin.
         """
         es, dim, l0 = state.elastic, disc.dim, disc.spacing
-        pairs = load.pairs
-        outward, rows, near = self._wall_partners(disc, state, pairs)
-        normal, _, wall_velocity = _surface(near, rows, outward, state.velocity, l0)
-        touching = jnp.any(near, axis=1) & ~es.clamped
+        normal, _, wall_velocity, near = self._walls(disc, state, load.pairs)
+        touching = near & ~es.clamped
         force = -disc.volume * load.wall_gradient[es.index]
         if self.contact == "push":
             force = es.contact_force

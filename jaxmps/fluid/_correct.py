@@ -85,7 +85,9 @@ def pressure_force(
             body_gradient=jnp.zeros_like(applied),
         )
     owned = jnp.logical_and(active, coupling.owned)
-    external = include & ~coupling.internal(pairs) & ~coupling.detached(pairs)
+    external = include & ~coupling.internal(pairs)
+    if coupling.apart is not None:  # a model's own wall contact
+        external = external & ~coupling.detached(pairs)
     wall = take_rows(jnp.logical_and(active, kind == int(Kind.WALL)), pairs.index)
     body_form = gradient.momentum_conserving()
     on_body = body_form(pairs, pressure, disc, external)

@@ -471,6 +471,18 @@ def _spun_up(scene, params, state, duration, gravity=None):
     )
 
 
+def _tilt_dt_max(c, l0: float) -> float:
+    """`friction_tilt`'s largest step: 0.002 s x (l0 / 0.1 m), and for an
+    elastic block met through the pressure at most DRY_CONTACT_COURANT l0 /
+    c_p."""
+    dt_max = 0.002 * l0 / 0.1
+    if c["body"] == "elastic" and c["contact"] == "pressure":
+        density = c["density"] * c["density_ratio"]
+        c_p = float(pressure_speed(c["youngs_modulus"], c["poisson_ratio"], density))
+        dt_max = min(dt_max, DRY_CONTACT_COURANT * l0 / c_p)
+    return dt_max
+
+
 def friction_tilt(**overrides) -> Case:
     """Seed 000 §8.5: a rigid block (`block_size` cube of `density_ratio` x `density`,
     or `block_size` wide and `block_height` tall) on a flat floor, the slope
@@ -527,16 +539,7 @@ def friction_tilt(**overrides) -> Case:
     if length < a + 2 * l0:
         raise ValueError("floor_length must exceed block_size by at least 2 spacings.")
     if c["dt"] == "adaptive" and c["dt_max"] is None:
-        c = {**c, "dt_max": 0.002 * l0 / 0.1}
-        if c["body"] == "elastic" and c["contact"] == "pressure":
-            c_p = float(
-                pressure_speed(
-                    c["youngs_modulus"],
-                    c["poisson_ratio"],
-                    c["density"] * c["density_ratio"],
-                )
-            )
-            c = {**c, "dt_max": min(c["dt_max"], DRY_CONTACT_COURANT * l0 / c_p)}
+        c = {**c, "dt_max": _tilt_dt_max(c, l0)}
     x0 = whole(min(0.5, 0.1 * length), l0)
     across = [a + 4 * l0] if dim == 3 else []
     lower_box = [x0] + ([2 * l0] if dim == 3 else []) + [0.0]
@@ -565,6 +568,17 @@ def friction_tilt(**overrides) -> Case:
             )
         return _elastic_tilt(config, friction, box, walls, wall_kind, domain, tilted)
     c = {**c, "body_pressure": _tilt_body_pressure(c, depth)}
+    config = {**config, "body_pressure": c["body_pressure"]}
+    particles = (fluid, box, walls, wall_kind)
+    return _rigid_tilt(c, config, friction, particles, domain, tilted)
+
+
+def _rigid_tilt(c, config, friction, particles, domain, tilted) -> Case:
+    """`friction_tilt` with a rigid block: settled (in water: held by friction
+    under the tilted gravity), then the gravity tilted. `particles`: the fluid,
+    the block, the walls and their kinds."""
+    fluid, box, walls, wall_kind = particles
+    dim, depth = box.shape[1], float(c["water_depth"])
     scene, params, state = _body_case(
         {**c, "friction": friction, "pressure": c["body_pressure"]},
         fluid,
@@ -572,7 +586,7 @@ def friction_tilt(**overrides) -> Case:
         walls,
         wall_kind,
         domain,
-        velocity_scale(a, c["gravity"]),
+        velocity_scale(config["block_size"], c["gravity"]),
         None,
     )
     tilted = jnp.asarray(tilted, params.gravity.dtype)
@@ -590,7 +604,6 @@ def friction_tilt(**overrides) -> Case:
         BodyValue("friction_x", 0, "friction", 0),
         BodyValue("normal_force", 0, "contact_force", dim - 1),
     )
-    config = {**config, "body_pressure": c["body_pressure"]}
     return Case(
         "friction_tilt", scene, params, state, probes, float(c["t_end"]), config
     )
