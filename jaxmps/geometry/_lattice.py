@@ -118,6 +118,49 @@ def tank(
     return pts[keep], kinds.astype(np.int32)
 
 
+def plate(
+    lower, upper, spacing: float, wall_layers: int = 1
+) -> tuple[np.ndarray, np.ndarray]:
+    """A solid plate (or any solid block) filling the box [lower, upper]: a shell
+    `wall_layers` deep of pressure walls (`Kind.WALL`) around a core of dummies
+    (`Kind.DUMMY`).
+
+    Fluid may touch it from every side: each face has its pressure walls and the
+    dummies behind them, so a thin plate is at least 2 `wall_layers` + 1 particles
+    thick (seed 001 §4.1: wall / dummy / wall, the dummy layer capped by walls at
+    the ends). With r_e <= 2.5 l0 (the default schemes) the water on the two
+    faces of a 3-layer plate, 4 l0 apart, does not interact; a wider r_e reaches
+    through it to the far face's walls (a thicker plate avoids that).
+
+    The box extents must be whole multiples of `spacing`. Where the plate meets a
+    tank's wall, drop its particles that overlap the wall's (`remove_overlaps`)
+    and it joins the wall.
+
+    Returns:
+        positions (m, d) and kinds (m,).
+    """
+    if not (isinstance(wall_layers, (int, np.integer)) and wall_layers >= 1):
+        raise ValueError(
+            f"wall_layers must be a whole number >= 1, got {wall_layers!r}."
+        )
+    lower = np.asarray(lower, dtype=np.float64)
+    upper = np.asarray(upper, dtype=np.float64)
+    pts = block(lower, upper, spacing)
+    counts = np.rint((upper - lower) / spacing).astype(int)
+    thinnest = int(counts.min())
+    if thinnest < 2 * wall_layers + 1:
+        raise ValueError(
+            f"A plate {thinnest} particle(s) thick has no dummy core: with "
+            f"wall_layers={wall_layers} it needs {2 * wall_layers + 1} (thickness "
+            f"{(2 * wall_layers + 1) * spacing:g} m at spacing {spacing:g}); make the "
+            "box thicker or `spacing` smaller."
+        )
+    inside = np.minimum(pts - lower, upper - pts).min(axis=1)
+    layer = np.rint(inside / spacing - 0.5).astype(int)
+    kinds = np.where(layer < wall_layers, int(Kind.WALL), int(Kind.DUMMY))
+    return pts, kinds.astype(np.int32)
+
+
 def remove_overlaps(
     points: np.ndarray, others: np.ndarray, spacing: float
 ) -> np.ndarray:
