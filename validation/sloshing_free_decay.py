@@ -26,42 +26,15 @@ import jax
 import numpy as np
 
 jax.config.update("jax_enable_x64", True)
-from _common import HERE, machine_info, result_name  # noqa: E402
+from _common import (  # noqa: E402
+    HERE,
+    crossing_period,
+    damped_fit,
+    machine_info,
+    result_name,
+)
 
 import jaxmps  # noqa: E402
-
-
-def damped_fit(t, y, guess):
-    """(period, damping ratio, residual rms) of the damped cosine that fits y(t)
-    best: a grid over w (+-20 % about 2 pi / guess) and s (negative: a growing
-    mode), least squares in a, b, c, then the grid refined twice about its best
-    point."""
-    w_lo, w_hi = 2 * np.pi / guess * 0.8, 2 * np.pi / guess * 1.2
-    s_lo, s_hi = -1.0, 2.0
-    best = None
-    for _ in range(3):
-        for w in np.linspace(w_lo, w_hi, 161):
-            for s in np.linspace(s_lo, s_hi, 81):
-                e = np.exp(-s * t)
-                basis = np.stack(
-                    [np.ones_like(t), e * np.cos(w * t), e * np.sin(w * t)], 1
-                )
-                coef, *_ = np.linalg.lstsq(basis, y, rcond=None)
-                r = float(np.sum((basis @ coef - y) ** 2))
-                if best is None or r < best[0]:
-                    best = (r, w, s)
-        _, w, s = best
-        dw, ds = (w_hi - w_lo) / 16, (s_hi - s_lo) / 16
-        w_lo, w_hi, s_lo, s_hi = w - dw, w + dw, s - ds, s + ds
-    r, w, s = best
-    return 2 * np.pi / w, s / w, float(np.sqrt(r / len(t)))
-
-
-def crossing_period(t, y):
-    m = y - y.mean()
-    i = np.nonzero(np.sign(m[:-1]) != np.sign(m[1:]))[0]
-    crossings = t[i] - m[i] * (t[i + 1] - t[i]) / (m[i + 1] - m[i])
-    return 2 * float(np.mean(np.diff(crossings))), len(crossings)
 
 
 def run(ratio, scheme, args):

@@ -1,5 +1,6 @@
 """Calibration against measured curves, and vmapped parameter sweeps."""
 
+from ._decay import fit_damped_oscillation as fit_damped_oscillation
 from ._fields import field_names as field_names
 from ._fit import Bounded as Bounded
 from ._fit import CalibrationResult as CalibrationResult
