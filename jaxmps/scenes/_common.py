@@ -313,6 +313,8 @@ RULES = {
     "solid_density": _POSITIVE,
     "tip_velocity": _FINITE,
     "end_velocity": _FINITE,
+    "plate_depth": _POSITIVE,
+    "plate_length": _LENGTH,
     "porous_kappa": _POSITIVE,
     "porous_drag": _NON_NEGATIVE,
     # grains

@@ -379,7 +379,9 @@ class ModeAmplitude(AbstractProbe):
     (2/L) int int_fluid cos(k x) dA = (2/L) int eta(x) cos(k x) dx (2-D), with
     k L a multiple of pi. An integral over all particles: far smoother than a
     level at one x. With `anchor`, x is measured in the frame of that (moving)
-    wall particle, initially at x = `anchor_x`."""
+    wall particle, initially at x = `anchor_x`. `still` is the sum's value for the
+    water at rest, subtracted (nonzero where solids inside the water, a plate at
+    one wall say, take part of the integral's area)."""
 
     name: str
     wave_number: float
@@ -387,11 +389,13 @@ class ModeAmplitude(AbstractProbe):
     spacing: float
     anchor: int | None = None
     anchor_x: float = 0.0
+    still: float = 0.0
 
     def __call__(self, scene: Scene, state: State):
         fluid = jnp.logical_and(state.active, state.kind == int(Kind.FLUID))
         c = jnp.cos(self.wave_number * _tank_frame(state, self.anchor, self.anchor_x))
-        return 2.0 / self.length * jnp.sum(jnp.where(fluid, c, 0.0)) * self.spacing**2
+        total = 2.0 / self.length * jnp.sum(jnp.where(fluid, c, 0.0)) * self.spacing**2
+        return total - self.still
 
 
 class Displacement(AbstractProbe):

@@ -1,5 +1,6 @@
 """Standing waves and shaken tanks (seed 001 §3.2-3.3)."""
 
+import dataclasses
 import math
 
 import equinox as eqx
@@ -47,6 +48,9 @@ STANDING_WAVE = {
     "depth": 0.5,
     "amplitude": 0.05,
     "mode_number": 2,
+    "plate_depth": None,
+    "plate_length": 0.1,
+    "plate_walls": "both",
     "gravity": 9.8,
     "spacing": 0.01,
     "dim": 2,
@@ -65,6 +69,10 @@ def standing_wave(**overrides) -> Case:
     the two central columns and the three next to each wall) and `mode` (the
     amplitude of the cos(m pi x / L) surface mode from all particles). Linear
     theory: mode = A cos(omega t), period in `config["linear_period"]`.
+
+    `plate_depth`, `plate_length`, `plate_walls`: submerged plates at the side
+    walls, as in `sloshing_tank`; the probes then read the still water with the
+    plates in it as zero.
     """
     c = resolve("standing_wave", STANDING_WAVE, overrides)
     if int(c["dim"]) != 2:
@@ -83,20 +91,34 @@ def standing_wave(**overrides) -> Case:
     surface = depth + amp * np.cos(k * grid[:, 0])
     fluid = grid[grid[:, 1] < surface]
     walls, wall_kind = _open_tank(c, length, height)
+    fluid, walls, wall_kind, plate_centre = _with_plates(
+        c, length, depth, fluid, walls, wall_kind
+    )
+    if plate_centre is not None and plate_centre - 2.5 * l0 < amp:
+        raise ValueError(
+            f"amplitude={amp:g} m uncovers the plate at plate_depth="
+            f"{c['plate_depth']:g} m; release a smaller wave or set the plate deeper."
+        )
     scene, params, state = _assemble(c, fluid, walls, wall_kind, height, depth)
     strip = 3 * l0
+    # Whole columns at the centre: the two beside it when it lies on a column
+    # boundary (an even count), else the three around the middle one.
+    centre = (2 if round(length / l0) % 2 == 0 else 3) * l0
     probes = (
-        # 2 l0 at the centre, which lies on a column boundary: whole columns.
-        StripLevel("eta_centre", 0.5 * length, 2 * l0, l0, depth),
+        StripLevel("eta_centre", 0.5 * length, centre, l0, depth),
         StripLevel("eta_left", 0.5 * strip, strip, l0, depth),
         StripLevel("eta_right", length - 0.5 * strip, strip, l0, depth),
         ModeAmplitude("mode", k, length, l0),
     )
+    if plate_centre is not None:
+        still = geometry.block([0.0, 0.0], [length, depth], l0)
+        probes = _at_rest(probes, still[_apart(still, walls, l0)], l0)
     config = {
         **c,
         "mode_number": m,
         "tank_length": length,
         "depth": depth,
+        "plate_centre_depth": plate_centre,
         "linear_period": standing_wave_period(2 * length / m, depth, c["gravity"]),
     }
     return Case(
@@ -149,6 +171,9 @@ SLOSHING_TANK = {
     "slope": 0.0,  # 0: rectangular; else horizontal run per unit rise
     "bottom_width": 0.3,
     "slope_wall": "staircase",
+    "plate_depth": None,
+    "plate_length": 0.1,
+    "plate_walls": "both",
     "gravity": 9.8,
     "spacing": 0.01,
     "dim": 2,
@@ -168,6 +193,13 @@ def sloshing_tank(**overrides) -> Case:
     (`slope_wall="staircase"`) or, as in seed 001, a diagonal row of wall
     particles with dummies stacked vertically (`"type1"`) or normal to the slope
     (`"type2"`); see `_sloped_tank`.
+
+    Submerged plates (seed 001 §4, Urata 2009): `plate_depth` (m below the
+    still surface; None, the default: none), `plate_length` (m out from the
+    wall, 0.1) and `plate_walls` (both, left, right; the sloped tank: left)
+    put a three-layer plate (wall / dummy / wall, `geometry.plate`) at the
+    side walls, moving with the tank; see `_plates`. Urata's tank:
+    `tank_length=0.45, depth=0.25` (linear f1 1.2769 Hz).
 
     Probes: `eta_left` and `eta_right` (strip-volume elevation over 3 l0 next to
     each wall, following the tank); rectangular tank: `mode1`, `mode2` (amplitude
@@ -192,6 +224,9 @@ def sloshing_tank(**overrides) -> Case:
         length = whole(c["tank_length"], l0)
         fluid = geometry.block([0.0, 0.0], [length, depth], l0)
         walls, wall_kind = _open_tank(c, length, height)
+        fluid, walls, wall_kind, plate_centre = _with_plates(
+            c, length, depth, fluid, walls, wall_kind
+        )
         scene, params, state = _assemble(
             c, fluid, walls, wall_kind, height, depth, motion=law
         )
@@ -229,6 +264,9 @@ def sloshing_tank(**overrides) -> Case:
             )
         length = whole(base + s * height, l0)
         fluid, walls, wall_kind = _sloped_tank(c, base, s, length, height, depth)
+        fluid, walls, wall_kind, plate_centre = _with_plates(
+            c, length, depth, fluid, walls, wall_kind, slope=(base, s)
+        )
         scene, params, state = _assemble(
             c, fluid, walls, wall_kind, height, depth, motion=law
         )
@@ -241,8 +279,119 @@ def sloshing_tank(**overrides) -> Case:
             RunUp("run_up", anchor, wall_x, base, s, 1.5 * l0, depth),
         )
         config = {**c, "depth": depth, "bottom_width": base}
+    if plate_centre is not None:
+        probes = _at_rest(probes, fluid, l0)  # the tank starts at rest
+    config["plate_centre_depth"] = plate_centre
     t_end = float(c["t_end"])
     return Case("sloshing_tank", scene, params, state, probes, t_end, config)
+
+
+PLATE_WALLS = ("both", "left", "right")
+
+
+def _plates(c: dict, length: float, depth: float, walls, slope=None):
+    """Submerged horizontal plates (seed 001 §4.1, Urata 2009) at the tank's side
+    walls, by the settings `plate_depth` (m below the still surface of the
+    plate's middle (dummy) layer, as in seed 001; None: no plates),
+    `plate_length` (m out from the wall) and `plate_walls` (both, left, right):
+    each plate three layers thick (`geometry.plate`: wall / dummy / wall), its
+    middle layer on the lattice row nearest `plate_depth` (the deeper of two
+    equally near), joined to the tank's wall.
+
+    `slope`: (bottom width, run per unit rise) of a sloped tank, whose plates go
+    on its vertical (left) wall only and must end clear of the slope.
+
+    Returns the plates' particles and kinds (empty without plates) and the depth
+    of their middle layer (None without plates).
+    """
+    none = np.zeros((0, 2)), np.zeros(0, np.int32), None
+    if c["plate_depth"] is None:
+        return none
+    l0 = c["spacing"]
+    side = c["plate_walls"]
+    if side not in PLATE_WALLS:
+        raise ValueError(
+            f"plate_walls={side!r} is not a choice; valid: {', '.join(PLATE_WALLS)}."
+        )
+    if slope is not None and side != "left":
+        raise ValueError(
+            "The sloped tank takes plates on its vertical (left) wall only: set "
+            "plate_walls=left."
+        )
+    span = whole(c["plate_length"], l0)
+    centre = depth - float(c["plate_depth"])
+    row = math.ceil(centre / l0 - 1.0 - 1e-6)  # middle layer at (row + 1/2) l0
+    bottom, top = (row - 1) * l0, (row + 2) * l0
+    if not (bottom >= l0 * (1 - 1e-9) and top <= depth - l0 * (1 - 1e-9)):
+        raise ValueError(
+            f"plate_depth={c['plate_depth']:g} m puts a plate {3 * l0:g} m thick "
+            f"(three layers at spacing {l0:g}) with no water above or below it in "
+            f"{depth:g} m of water; choose plate_depth from {2 * l0:g} to below "
+            f"{depth - 2 * l0:g} m, or a smaller spacing."
+        )
+    if span < l0 or span > (0.5 if side == "both" else 1.0) * length - 2 * l0:
+        raise ValueError(
+            f"plate_length={c['plate_length']:g} m must be at least one spacing and "
+            "leave the water two spacings between the plate's end and the "
+            f"{'other plate' if side == 'both' else 'far wall'} in a "
+            f"{length:g} m tank."
+        )
+    reach = boundary_layers(c) * l0
+    boxes = []
+    if side in ("both", "left"):
+        boxes.append(([-reach, bottom], [span, top]))
+    if side in ("both", "right"):
+        boxes.append(([length - span, bottom], [length + reach, top]))
+    parts = [geometry.plate(lo, hi, l0) for lo, hi in boxes]
+    points = np.concatenate([p for p, _ in parts])
+    kinds = np.concatenate([k for _, k in parts])
+    if slope is not None and span + 2 * l0 > slope[0] + slope[1] * bottom:
+        raise ValueError(
+            f"plate_length={c['plate_length']:g} m leaves less than two spacings "
+            f"of water between the plate and the slope at plate_depth="
+            f"{c['plate_depth']:g} m; shorten the plate."
+        )
+    keep = _apart(points, walls, l0)
+    return points[keep], kinds[keep], depth - (row + 0.5) * l0
+
+
+def _with_plates(c, length, depth, fluid, walls, wall_kind, slope=None):
+    """The tank's water, walls and kinds with the `plate_*` settings' plates
+    (`_plates`) among the walls and out of the water, and the plates' middle-layer
+    depth (None without plates)."""
+    plates, plate_kind, centre = _plates(c, length, depth, walls, slope)
+    if centre is None:
+        return fluid, walls, wall_kind, None
+    fluid = fluid[_apart(fluid, plates, c["spacing"])]
+    walls = np.concatenate([walls, plates])
+    wall_kind = np.concatenate([wall_kind, plate_kind]).astype(np.int32)
+    return fluid, walls, wall_kind, centre
+
+
+def _at_rest(probes, still, spacing):
+    """`probes` reading zero for the water at rest `still` (its particles): the
+    strip levels' still depth and the mode amplitudes' still sum taken from it,
+    so that plates in the water do not read as a lower surface."""
+    out = []
+    for probe in probes:
+        x = still[:, 0]
+        if isinstance(probe, StripLevel):
+            inside = np.abs(x - probe.x) < 0.5 * probe.width
+            level = np.sum(inside) * spacing**2 / probe.width
+            probe = dataclasses.replace(probe, still_depth=float(level))
+        elif isinstance(probe, ModeAmplitude):
+            total = np.sum(np.cos(probe.wave_number * x)) * spacing**2
+            probe = dataclasses.replace(probe, still=float(2 / probe.length * total))
+        out.append(probe)
+    return tuple(out)
+
+
+def _apart(points, others, spacing):
+    """Mask of `points` farther than spacing / 2 from every point of `others`."""
+    if len(others) == 0:
+        return np.ones(len(points), bool)
+    d2 = np.min(np.sum((points[:, None] - others[None]) ** 2, axis=-1), axis=1)
+    return d2 > (0.5 * spacing) ** 2
 
 
 def _nearest(points, target) -> int:
