@@ -23,12 +23,13 @@ Prints the responses and the peaks; `--out FILE.json` saves them.
 
 import argparse
 import json
-import time
 
 import jax
 import numpy as np
 
 jax.config.update("jax_enable_x64", True)
+from _common import shaken_sweep  # noqa: E402
+
 import jaxmps  # noqa: E402
 
 
@@ -70,12 +71,7 @@ def main(argv=None):
     f1 = case.config["resonances"][0]
     freqs = np.asarray(args.freqs or [round(a * f1, 4) for a in args.around])
     dt = float(case.params.dt)
-    n = int((args.settle + args.shake) / dt) // 10 * 10
-    t0 = time.perf_counter()
-    out = jaxmps.sweep(case, {"motion.frequency": freqs}, n, 10)
-    wall = time.perf_counter() - t0
-    t = np.asarray(out.saved["time"])[0]
-    after = t > args.settle
+    out, n, wall, _, after = shaken_sweep(case, freqs, args.settle, args.shake)
     amp = case.config["amplitude"]
     record = dict(
         spacing=args.spacing,

@@ -19,7 +19,6 @@ Writes results/sloshing_free_decay_cpu.{json,md}.
 
 import argparse
 import json
-import time
 from pathlib import Path
 
 import jax
@@ -30,6 +29,7 @@ from _common import (  # noqa: E402
     HERE,
     crossing_period,
     damped_fit,
+    free_decay,
     machine_info,
     result_name,
 )
@@ -50,13 +50,7 @@ def run(ratio, scheme, args):
     )
     period = case.config["linear_period"]
     dt = float(case.params.dt)
-    n = int(args.periods * period / dt) // 5 * 5
-    obs = jaxmps.scenes.observe_probes(case.probes)
-    t0 = time.perf_counter()
-    tr = jaxmps.simulate(case.scene, case.params, case.state, n, 5, obs)
-    wall = time.perf_counter() - t0
-    t = np.asarray(tr.saved["time"])
-    y = np.asarray(tr.saved["mode"])
+    tr, n, wall, t, y = free_decay(case, args.periods)
     fit_period, zeta, rms = damped_fit(t, y, period)
     cross, count = crossing_period(t, y)
     probe = {q.name: q for q in case.probes}["mode"]

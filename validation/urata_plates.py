@@ -29,14 +29,20 @@ Writes results/urata_plates_cpu.{json,md} (or `--out`).
 
 import argparse
 import json
-import time
 from pathlib import Path
 
 import jax
 import numpy as np
 
 jax.config.update("jax_enable_x64", True)
-from _common import HERE, damped_fit, machine_info, result_name  # noqa: E402
+from _common import (  # noqa: E402
+    HERE,
+    damped_fit,
+    free_decay,
+    machine_info,
+    result_name,
+    shaken_sweep,
+)
 
 import jaxmps  # noqa: E402
 
@@ -72,13 +78,7 @@ def forced(plate, args):
         **plate_settings(plate, args),
     )
     freqs = np.asarray(args.freqs)
-    dt = float(case.params.dt)
-    n = int((args.settle + args.shake) / dt) // 10 * 10
-    t0 = time.perf_counter()
-    out = jaxmps.sweep(case, {"motion.frequency": freqs}, n, 10)
-    wall = time.perf_counter() - t0
-    t = np.asarray(out.saved["time"])[0]
-    shaking = t > args.settle
+    out, n, wall, _, shaking = shaken_sweep(case, freqs, args.settle, args.shake)
     amp = args.amplitude
     response = {
         name: (np.abs(np.asarray(out.saved[name]))[:, shaking].max(axis=1) / amp)
@@ -88,7 +88,7 @@ def forced(plate, args):
         particles=int(case.state.active.sum()),
         fluid=int(np.sum(np.asarray(case.state.kind) == 0)),
         plate_centre_depth=case.config["plate_centre_depth"],
-        dt=dt,
+        dt=float(case.params.dt),
         steps=n,
         forced_wall_s=wall,
         results=out.messages(),
@@ -110,13 +110,7 @@ def free(plate, args):
         **plate_settings(plate, args),
     )
     period = case.config["linear_period"]
-    dt = float(case.params.dt)
-    n = int(args.periods * period / dt) // 5 * 5
-    obs = jaxmps.scenes.observe_probes(case.probes)
-    t0 = time.perf_counter()
-    tr = jaxmps.simulate(case.scene, case.params, case.state, n, 5, obs)
-    wall = time.perf_counter() - t0
-    t, y = np.asarray(tr.saved["time"]), np.asarray(tr.saved["mode"])
+    tr, _, wall, t, y = free_decay(case, args.periods)
     fit_period, zeta, rms = damped_fit(t, y, period)
     return dict(
         free_wall_s=wall,
