@@ -130,9 +130,10 @@ def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--heel", type=float, default=5.0)
     add_decay_arguments(parser, tank=4.0, depth=1.0, t_end=4.0, fit=3.5)
+    parser.add_argument("--out", help="results file name (roll_decay_ship_cpu)")
     args = parser.parse_args()
     jax.config.update("jax_enable_x64", True)
-    path = HERE / "results" / "roll_decay_ship_cpu"
+    path = HERE / "results" / (args.out or "roll_decay_ship_cpu")
     write_spacings(
         path,
         args,

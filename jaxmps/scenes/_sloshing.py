@@ -224,16 +224,9 @@ def sloshing_tank(**overrides) -> Case:
         length = whole(c["tank_length"], l0)
         fluid = geometry.block([0.0, 0.0], [length, depth], l0)
         walls, wall_kind = _open_tank(c, length, height)
-        fluid, walls, wall_kind, plate_centre = _with_plates(
-            c, length, depth, fluid, walls, wall_kind
+        scene, params, state, fluid, frame, plate_centre = _shaken(
+            c, (fluid, walls, wall_kind), length, height, depth, law
         )
-        scene, params, state = _assemble(
-            c, fluid, walls, wall_kind, height, depth, motion=law
-        )
-        n_fluid = len(fluid)
-        wall_x = -0.5 * l0  # the left wall's pressure layer; every wall moves with it
-        anchor = n_fluid + _nearest(walls, [wall_x, 0.5 * depth])
-        frame = dict(anchor=anchor, anchor_x=wall_x)
         probes = (
             StripLevel("eta_left", 0.5 * strip, strip, l0, depth, **frame),
             StripLevel("eta_right", length - 0.5 * strip, strip, l0, depth, **frame),
@@ -263,20 +256,15 @@ def sloshing_tank(**overrides) -> Case:
                 "vertically), type2 (diagonal, dummies normal to the slope)."
             )
         length = whole(base + s * height, l0)
-        fluid, walls, wall_kind = _sloped_tank(c, base, s, length, height, depth)
-        fluid, walls, wall_kind, plate_centre = _with_plates(
-            c, length, depth, fluid, walls, wall_kind, slope=(base, s)
+        particles = _sloped_tank(c, base, s, length, height, depth)
+        scene, params, state, fluid, frame, plate_centre = _shaken(
+            c, particles, length, height, depth, law, slope=(base, s)
         )
-        scene, params, state = _assemble(
-            c, fluid, walls, wall_kind, height, depth, motion=law
-        )
-        n_fluid = len(fluid)
-        wall_x = -0.5 * l0
-        anchor = n_fluid + _nearest(walls, [wall_x, 0.5 * depth])
-        frame = dict(anchor=anchor, anchor_x=wall_x)
         probes = (
             StripLevel("eta_left", 0.5 * strip, strip, l0, depth, **frame),
-            RunUp("run_up", anchor, wall_x, base, s, 1.5 * l0, depth),
+            RunUp(
+                "run_up", frame["anchor"], frame["anchor_x"], base, s, 1.5 * l0, depth
+            ),
         )
         config = {**c, "depth": depth, "bottom_width": base}
     if plate_centre is not None:
@@ -284,6 +272,24 @@ def sloshing_tank(**overrides) -> Case:
     config["plate_centre_depth"] = plate_centre
     t_end = float(c["t_end"])
     return Case("sloshing_tank", scene, params, state, probes, t_end, config)
+
+
+def _shaken(c, particles, length, height, depth, law, slope=None):
+    """The shaken tank's scene, params and state from its (water, walls, wall
+    kinds), with the `plate_*` settings' plates; also the water (less the
+    plates'), the probes' frame (the left wall particle at mid-depth, which
+    every wall moves with) and the plates' middle-layer depth (None: none)."""
+    l0 = c["spacing"]
+    fluid, walls, wall_kind, plate_centre = _with_plates(
+        c, length, depth, *particles, slope=slope
+    )
+    scene, params, state = _assemble(
+        c, fluid, walls, wall_kind, height, depth, motion=law
+    )
+    wall_x = -0.5 * l0  # the left wall's pressure layer
+    anchor = len(fluid) + _nearest(walls, [wall_x, 0.5 * depth])
+    frame = dict(anchor=anchor, anchor_x=wall_x)
+    return scene, params, state, fluid, frame, plate_centre
 
 
 PLATE_WALLS = ("both", "left", "right")
