@@ -10,7 +10,8 @@ tank `--tank` m long and `--depth` m deep (long, so that the radiated waves retu
 from the end walls only after the fit window) and is released `--offset` m below its
 Archimedes draft. The centre's height is fitted over the first `--fit` seconds with
 y = c + exp(-zeta w t) (a cos(w_d t) + b sin(w_d t)), w_d = w sqrt(1 - zeta^2)
-(grid search over w and zeta, linear least squares for a, b, c). Theory
+(`jaxmps.calibration.fit_damped_oscillation`: a grid over w and the decay
+rate refined twice, linear least squares for a, b, c). Theory
 (`_heave_theory.py`, the rectangle of the same beam and draft): w_n of
 w^2 (m + a33(w)) = rho g B and the radiation damping ratio b33 / (2 (m + a33) w_n)
 at the same depth.
@@ -31,25 +32,23 @@ from _common import HERE, machine_info
 from _heave_theory import free_heave
 
 import jaxmps
+from jaxmps.calibration import fit_damped_oscillation
 
 
 def fit_decay(t, y):
-    """(w [rad/s], zeta, rms residual / amplitude) of the damped oscillation."""
-    best = (np.inf, None)
-    for w in np.linspace(4.0, 16.0, 241):
-        for zeta in np.linspace(0.0, 0.5, 101):
-            wd = w * np.sqrt(1 - zeta**2)
-            e = np.exp(-zeta * w * t)
-            basis = np.stack(
-                [np.ones_like(t), e * np.cos(wd * t), e * np.sin(wd * t)], 1
-            )
-            coef, *_ = np.linalg.lstsq(basis, y, rcond=None)
-            r = np.sum((basis @ coef - y) ** 2)
-            if r < best[0]:
-                best = (r, (w, zeta, coef))
-    r, (w, zeta, coef) = best
-    amplitude = np.hypot(coef[1], coef[2])
-    return w, zeta, np.sqrt(r / len(t)) / amplitude
+    """(w_n [rad/s], zeta, rms residual / amplitude) of the damped oscillation
+    c + exp(-zeta w_n t) (a cos w_d t + b sin w_d t), w_d = w_n sqrt(1 - zeta^2),
+    closest to y(t): `jaxmps.calibration.fit_damped_oscillation` over periods of
+    0.39-1.57 s (w 4-16 rad/s), its damped frequency and decay rate turned into
+    the natural frequency and damping ratio."""
+    period, ratio, rms = fit_damped_oscillation(t, y, 2 * np.pi / 10.0, spread=0.6)
+    w_d = 2 * np.pi / period
+    decay = ratio * w_d
+    e = np.exp(-decay * t)
+    basis = np.stack([np.ones_like(t), e * np.cos(w_d * t), e * np.sin(w_d * t)], 1)
+    coef, *_ = np.linalg.lstsq(basis, y, rcond=None)
+    w = np.hypot(w_d, decay)
+    return w, decay / w, rms / np.hypot(coef[1], coef[2])
 
 
 # The sections: the box of the theory comparison, and the ship section of
