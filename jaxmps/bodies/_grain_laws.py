@@ -271,82 +271,24 @@ def contact_forces(
     weight."""
     m, dim = x.shape
     w = walls.position.shape[0]
-    total = m + w
-    listed = partner < total
     is_wall = partner >= m
-    position = jnp.concatenate([x, walls.position])
     velocity = jnp.concatenate([v, walls.velocity])
     spins = jnp.concatenate([spin, jnp.zeros((w, spin.shape[1]), spin.dtype)])
     sizes = jnp.concatenate([diameter, jnp.full((w,), walls.diameter, diameter.dtype)])
-    offset = tuple(
-        jnp.where(listed, take_rows(position[:, a], partner) - x[:, a, None], 0.0)
-        for a in range(dim)
+    overlap, reach, touching, normal, radius_i, radius_j = _contact_geometry(
+        x, walls.position, diameter, sizes, partner
     )
-    distance = safe_norm(offset, listed, placeholder=1.0)
-    reach = 0.5 * (diameter[:, None] + take_rows(sizes, partner))
-    overlap = reach - distance
-    touching = listed & (overlap > 0)
-    # Choice: each grain's lever reaches the middle of the overlap (r - delta/2),
-    # so that both partners' levers end at one contact point and the contact
-    # keeps angular momentum exactly (levers of r_i and r_j would miss it by the
-    # overlap's moment of the tangential force).
-    radius_i = 0.5 * diameter[:, None] - 0.5 * overlap
-    radius_j = 0.5 * take_rows(sizes, partner) - 0.5 * overlap
-    normal = tuple(jnp.where(touching, o / distance, 0.0) for o in offset)
-    relative = tuple(
-        take_rows(velocity[:, a], partner) - v[:, a, None] for a in range(dim)
+    relative = _contact_velocity(
+        v, velocity, spin, spins, partner, normal, radius_i, radius_j
     )
-    # The contact points' relative velocity: their centres' and the spins' (the
-    # point of i at r_i n, that of j at -r_j n).
-    if dim == 2:
-        turn = radius_i * spin[:, :1] + radius_j * take_rows(spins[:, 0], partner)
-        relative = (relative[0] + turn * normal[1], relative[1] - turn * normal[0])
-    else:
-        turn = tuple(
-            radius_i * spin[:, a, None] + radius_j * take_rows(spins[:, a], partner)
-            for a in range(3)
-        )
-        relative = tuple(
-            r - c for r, c in zip(relative, _cross_3d(turn, normal), strict=True)
-        )
     along = component_dot(relative, normal)
     tangential = tuple(r - along * n for r, n in zip(relative, normal, strict=True))
-    mass_i = material.mass[:, None]
-    mass_j = take_rows(material.mass, partner)
-    reduced = jnp.where(
-        is_wall, mass_i, mass_i * mass_j / jnp.where(is_wall, 1.0, mass_i + mass_j)
+    push, eta_n = _normal_push(
+        material, partner, is_wall, overlap, reach, touching, along
     )
-    eta_n = 2.0 * material.zeta * jnp.sqrt(material.k_n * reduced)
-    if material.ramp > 0:
-        # The dashpots engage smoothly, so that the force does not jump when a
-        # contact begins (`Grains.dashpot_ramp`).
-        eta_n = eta_n * jnp.clip(overlap / (material.ramp * reach), 0.0, 1.0)
-    eta_s = material.shear_damping * eta_n
-    push = jnp.where(
-        touching, jnp.maximum(material.k_n * overlap - eta_n * along, 0.0), 0.0
+    spring, friction = _tangential_friction(
+        material, shear, normal, tangential, touching, push, eta_n, h
     )
-    # The tangential spring: turned into the contact's tangent plane, extended
-    # by the sub-step's tangential motion, capped at the Coulomb limit.
-    normal_part = component_dot(tuple(shear), normal)
-    held = tuple(s - normal_part * n for s, n in zip(shear, normal, strict=True))
-    spring = tuple(
-        jnp.where(touching, s + h * t, 0.0)
-        for s, t in zip(held, tangential, strict=True)
-    )
-    limit = material.friction * push
-    stretch = safe_norm(spring, touching, placeholder=0.0)
-    cap = jnp.where(
-        stretch * material.k_s > limit,
-        limit / jnp.where(stretch > 0, material.k_s * stretch, 1.0),
-        1.0,
-    )
-    spring = tuple(s * cap for s in spring)
-    trial = tuple(
-        material.k_s * s + eta_s * t for s, t in zip(spring, tangential, strict=True)
-    )
-    size = safe_norm(trial, touching, placeholder=0.0)
-    scale = jnp.where(size > limit, limit / jnp.where(size > 0, size, 1.0), 1.0)
-    friction = tuple(jnp.where(touching, f * scale, 0.0) for f in trial)
     on_grain = [f - push * n for f, n in zip(friction, normal, strict=True)]
     force = jnp.stack([jnp.sum(f, axis=1) for f in on_grain], axis=-1)
     wall_force = None
@@ -378,3 +320,92 @@ def contact_forces(
         count=jnp.sum(touching, axis=1, dtype=jnp.int32),
         wall_force=wall_force,
     )
+
+
+def _contact_geometry(x, wall_position, diameter, sizes, partner):
+    """Per slot: the overlap, the sum of radii, whether the pair touches, the unit
+    normal towards the partner (components) and both levers to the contact
+    point."""
+    m, dim = x.shape
+    listed = partner < m + wall_position.shape[0]
+    position = jnp.concatenate([x, wall_position])
+    offset = tuple(
+        jnp.where(listed, take_rows(position[:, a], partner) - x[:, a, None], 0.0)
+        for a in range(dim)
+    )
+    distance = safe_norm(offset, listed, placeholder=1.0)
+    reach = 0.5 * (diameter[:, None] + take_rows(sizes, partner))
+    overlap = reach - distance
+    touching = listed & (overlap > 0)
+    # Choice: each grain's lever reaches the middle of the overlap (r - delta/2),
+    # so that both partners' levers end at one contact point and the contact
+    # keeps angular momentum exactly (levers of r_i and r_j would miss it by the
+    # overlap's moment of the tangential force).
+    radius_i = 0.5 * diameter[:, None] - 0.5 * overlap
+    radius_j = 0.5 * take_rows(sizes, partner) - 0.5 * overlap
+    normal = tuple(jnp.where(touching, o / distance, 0.0) for o in offset)
+    return overlap, reach, touching, normal, radius_i, radius_j
+
+
+def _contact_velocity(v, velocity, spin, spins, partner, normal, radius_i, radius_j):
+    """The contact points' relative velocity (components): their centres' and
+    the spins' (the point of i at r_i n, that of j at -r_j n)."""
+    dim = v.shape[1]
+    relative = tuple(
+        take_rows(velocity[:, a], partner) - v[:, a, None] for a in range(dim)
+    )
+    if dim == 2:
+        turn = radius_i * spin[:, :1] + radius_j * take_rows(spins[:, 0], partner)
+        return (relative[0] + turn * normal[1], relative[1] - turn * normal[0])
+    turn = tuple(
+        radius_i * spin[:, a, None] + radius_j * take_rows(spins[:, a], partner)
+        for a in range(3)
+    )
+    return tuple(r - c for r, c in zip(relative, _cross_3d(turn, normal), strict=True))
+
+
+def _normal_push(material, partner, is_wall, overlap, reach, touching, along):
+    """The normal spring-dashpot's push per slot (never pulling) and its dashpot
+    coefficient eta_n (zeta times critical damping on the reduced mass)."""
+    mass_i = material.mass[:, None]
+    mass_j = take_rows(material.mass, partner)
+    reduced = jnp.where(
+        is_wall, mass_i, mass_i * mass_j / jnp.where(is_wall, 1.0, mass_i + mass_j)
+    )
+    eta_n = 2.0 * material.zeta * jnp.sqrt(material.k_n * reduced)
+    if material.ramp > 0:
+        # The dashpots engage smoothly, so that the force does not jump when a
+        # contact begins (`Grains.dashpot_ramp`).
+        eta_n = eta_n * jnp.clip(overlap / (material.ramp * reach), 0.0, 1.0)
+    push = jnp.where(
+        touching, jnp.maximum(material.k_n * overlap - eta_n * along, 0.0), 0.0
+    )
+    return push, eta_n
+
+
+def _tangential_friction(material, shear, normal, tangential, touching, push, eta_n, h):
+    """The tangential spring after the sub-step (turned into the contact's
+    tangent plane, extended by the sub-step's tangential motion, capped at the
+    Coulomb limit) and the friction force, spring plus dashpot within mu push."""
+    eta_s = material.shear_damping * eta_n
+    normal_part = component_dot(tuple(shear), normal)
+    held = tuple(s - normal_part * n for s, n in zip(shear, normal, strict=True))
+    spring = tuple(
+        jnp.where(touching, s + h * t, 0.0)
+        for s, t in zip(held, tangential, strict=True)
+    )
+    limit = material.friction * push
+    stretch = safe_norm(spring, touching, placeholder=0.0)
+    cap = jnp.where(
+        stretch * material.k_s > limit,
+        limit / jnp.where(stretch > 0, material.k_s * stretch, 1.0),
+        1.0,
+    )
+    spring = tuple(s * cap for s in spring)
+    trial = tuple(
+        material.k_s * s + eta_s * t for s, t in zip(spring, tangential, strict=True)
+    )
+    size = safe_norm(trial, touching, placeholder=0.0)
+    scale = jnp.where(size > limit, limit / jnp.where(size > 0, size, 1.0), 1.0)
+    friction = tuple(jnp.where(touching, f * scale, 0.0) for f in trial)
+    return spring, friction
