@@ -90,12 +90,28 @@ class Scheme(eqx.Module):
         return dataclasses.replace(self, **changes)
 
 
-def standard(solver: SemiImplicit | None = None) -> Scheme:
+def standard(
+    solver: SemiImplicit | None = None, *, dynamic_stabilisation: bool = False
+) -> Scheme:
     """The default scheme (seed 000): standard weight r_e/r - 1 at r_e = 2.1 l0, the
     lambda Laplacian, the corrected gradient with the minimum-pressure shift, the
     mixed source, negative pressures clamped, the beta free-surface rule with the
-    isolated-surface filter and the collision guard."""
-    return Scheme(
+    isolated-surface filter and the collision guard.
+
+    `dynamic_stabilisation=True` (scene setting `scheme=standard_ds`) keeps the
+    corrected gradient as seed 000 prints it, without the shift, and stabilises it
+    by seed 001's dynamic stabilisation instead of the shift and the collision
+    guard. Measured at l0 = 1 cm (validation/sloshing_free_decay.py,
+    still_water_noise.py): the first sloshing mode's period -0.7 / +0.3 / +0.0 % of
+    linear theory at h/L 0.2 / 0.4 / 0.6 (default: -3.3 / -2.0 / -2.8 %), and the
+    still-water bottom pressure 1.5-21x quieter (0.2-1.0 % of rho g H over
+    seven tanks at 1 and 2 cm, default 0.9-5.7 %), for a semi-implicit step 11-29 %
+    dearer (dam break, 7k particles, benchmarks/NOTES.md §16). Measured once at
+    h/L 0.2 / 0.4 / 0.6, dynamic stabilisation with the shift kept gave -1.5 /
+    -2.2 / -1.5 %: both the guard and the shift shorten the period. The unshifted
+    gradient with only the collision guard is unstable at the contact line (see
+    `CorrectedGradient`)."""
+    scheme = Scheme(
         r_e=2.1,
         weight=MPSWeight(),
         laplacian=StandardLaplacian(),
@@ -105,6 +121,13 @@ def standard(solver: SemiImplicit | None = None) -> Scheme:
         collision=CollisionGuard(),
         stabiliser=None,
     )
+    if dynamic_stabilisation:
+        scheme = scheme.replace(
+            gradient=CorrectedGradient(),
+            collision=None,
+            stabiliser=DynamicStabilisation(),
+        )
+    return scheme
 
 
 def explicit(solver: Explicit | None = None) -> Scheme:

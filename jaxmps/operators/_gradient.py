@@ -126,7 +126,10 @@ class CorrectedGradient(AbstractGradient):
     # l0 = 0.01 m). The default scheme (`schemes.standard`) therefore uses
     # `CorrectedGradient(minimum_shift=True)`; this class's default,
     # `CorrectedGradient()`, is the operator as the seed defines it (exact on linear
-    # fields, which the shifted form is not), which `schemes.high_accuracy` uses.
+    # fields, which the shifted form is not), which `schemes.high_accuracy` and
+    # `schemes.standard(dynamic_stabilisation=True)` use: with dynamic
+    # stabilisation in place of the collision guard it is stable, and the shift's
+    # spurious repulsion no longer shortens the period of waves.
     minimum_shift: bool = False
 
     def __call__(

@@ -14,7 +14,7 @@ from ..fluid import Explicit, Jacobi, Multigrid, SemiImplicit
 from ..fluid._explicit import WALL_PRESSURES
 
 SOLVERS = ("semi_implicit", "explicit")
-SCHEMES = ("standard", "high_accuracy", "standard_mps")
+SCHEMES = ("standard", "high_accuracy", "standard_mps", "standard_ds")
 PRECONDITIONERS = {"multigrid": Multigrid, "jacobi": Jacobi}
 
 
@@ -469,6 +469,8 @@ def discretisation(config: dict) -> schemes.Scheme:
         return schemes.high_accuracy(solver)
     if config["scheme"] == "standard_mps":
         return schemes.standard_mps(solver)
+    if config["scheme"] == "standard_ds":
+        return schemes.standard(solver, dynamic_stabilisation=True)
     return schemes.standard(solver)
 
 
