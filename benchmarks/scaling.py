@@ -15,6 +15,11 @@ least-squares fit of log(ms/step) on log(particles) over all sizes.
     python benchmarks/scaling.py                       # float32, 1k-100k, ~10 min
     python benchmarks/scaling.py --sizes 1000 10000 --steps 10 --x64
     python benchmarks/scaling.py --dim 3 --sizes 3000 30000 300000 --solvers explicit
+    python benchmarks/scaling.py --sizes 7000 --solvers semi_implicit \
+        --scheme standard_ds
+
+`--scheme` is the semi-implicit rows' scheme (a scene setting: `standard`, the
+default, `standard_ds`, `high_accuracy`, `standard_mps`).
 
 Writes results/scaling_<cpu|gpu>.{json,md} (2-D) or scaling_3d_<cpu|gpu> (3-D).
 """
@@ -44,14 +49,20 @@ def spacing_for(target: int, dim: int, solver: str) -> float:
     return spacing
 
 
-def measure(solver: str, target: int, steps: int, dim: int = 2) -> dict:
+def measure(
+    solver: str, target: int, steps: int, dim: int = 2, scheme: str = "standard"
+) -> dict:
     from _common import fixed_steps, time_compiled
     from step_throughput import observe_time
 
     import jaxmps
 
     spacing = spacing_for(target, dim, solver)
-    case = fixed_steps(jaxmps.scenes.dam_break(spacing=spacing, solver=solver, dim=dim))
+    if solver == "explicit":
+        scheme = "standard"
+    case = fixed_steps(
+        jaxmps.scenes.dam_break(spacing=spacing, solver=solver, dim=dim, scheme=scheme)
+    )
     scene, params = case.scene, case.params
     state = jaxmps.simulate(scene, params, case.state, 20, 20, throw=False).state
     args = (scene, params, state, steps, steps, observe_time)
@@ -81,6 +92,7 @@ def measure(solver: str, target: int, steps: int, dim: int = 2) -> dict:
     row = {
         "dim": dim,
         "solver": solver,
+        "scheme": scheme,
         "spacing": spacing,
         "particles": int(scene.capacity),
         "steps": steps,
@@ -93,7 +105,7 @@ def measure(solver: str, target: int, steps: int, dim: int = 2) -> dict:
         "build_share": searches * 1e3 * build_s / ms,
     }
     print(
-        f"{solver:14s} n={row['particles']:7d} {ms:9.2f} ms/step "
+        f"{solver:14s} {scheme:13s} n={row['particles']:7d} {ms:9.2f} ms/step "
         f"{row['particle_steps_per_s']:.3g} p-steps/s CG {row['cg_iterations']:4d} "
         f"builds {100 * row['build_share']:.0f} % compile {compile_s:.1f} s",
         flush=True,
@@ -110,6 +122,7 @@ def main(argv=None):
     p.add_argument("--steps", type=int, default=20)
     p.add_argument("--x64", action="store_true")
     p.add_argument("--dim", type=int, default=2, choices=[2, 3])
+    p.add_argument("--scheme", default="standard")
     p.add_argument("--out", type=Path, default=None)
     args = p.parse_args(argv)
     jax.config.update("jax_enable_x64", args.x64)
@@ -117,7 +130,9 @@ def main(argv=None):
 
     info = machine_info()
     rows = [
-        measure(s, n, args.steps, args.dim) for s in args.solvers for n in args.sizes
+        measure(s, n, args.steps, args.dim, args.scheme)
+        for s in args.solvers
+        for n in args.sizes
     ]
     slopes = {}
     for s in args.solvers:
@@ -142,13 +157,14 @@ def main(argv=None):
         "time; a step with carried lists searches only once a particle has moved "
         "half the skin, so above 100 % most steps did not search",
         "",
-        "| solver | particles | ms/step | particle-steps/s | CG it. | "
+        "| solver | scheme | particles | ms/step | particle-steps/s | CG it. | "
         "build share | compile [s] |",
-        "|---|---|---|---|---|---|---|",
+        "|---|---|---|---|---|---|---|---|",
     ]
     for r in rows:
         lines.append(
-            f"| {r['solver']} | {r['particles']} | {r['ms_per_step']:.2f} | "
+            f"| {r['solver']} | {r['scheme']} | {r['particles']} | "
+            f"{r['ms_per_step']:.2f} | "
             f"{r['particle_steps_per_s']:.3g} | {r['cg_iterations']} | "
             f"{100 * r['build_share']:.0f} % | {r['compile_s']:.1f} |"
         )
