@@ -17,8 +17,9 @@ w^2 (m + a33(w)) = rho g B and the radiation damping ratio b33 / (2 (m + a33) w_
 at the same depth.
 
 Run: python validation/heave_decay.py [--section box|ship] [--spacings 0.02 0.01]
-[--merge] (writes results/heave_decay_cpu.{json,md}, or heave_decay_ship_cpu.*;
---merge keeps the rows of the existing file at the spacings not re-measured)
+[--merge] [--scheme standard_ds] (writes results/heave_decay_cpu.{json,md}, or
+heave_decay_ship_cpu.*; --merge keeps the rows of the existing file at the spacings
+not re-measured)
 """
 
 import argparse
@@ -115,8 +116,10 @@ def rollout(case, t_end):
     return {k: np.asarray(v) for k, v in out.saved.items()}, wall, out.result
 
 
-def measure(section, spacing, tank, depth, offset, t_end, fit):
-    case, mass, draft = _section_case(section, spacing, tank, depth, offset, t_end)
+def measure(section, spacing, tank, depth, offset, t_end, fit, scheme="standard"):
+    case, mass, draft = _section_case(
+        section, spacing, tank, depth, offset, t_end, scheme=scheme
+    )
     s, wall, result = rollout(case, t_end)
     t, y = s["time"], s["box_y"]
     window = t <= fit
@@ -128,6 +131,7 @@ def measure(section, spacing, tank, depth, offset, t_end, fit):
     measured = _measured()["heave_period"] if section == "ship" else None
     return dict(
         section=section,
+        scheme=scheme,
         mass=mass,
         draft=draft,
         period_measured=measured,
@@ -157,7 +161,8 @@ def markdown(rows, info, args):
         f"Machine: {info.get('cpu_model', '?')}; float64; `validation/heave_decay.py"
         f" --section {args.section}` (tank {args.tank} m, depth {args.depth} m,"
         f" released {args.offset} m below the Archimedes draft, fit over the first"
-        f" {args.fit} s). Theory: the rectangle of the same beam and draft"
+        f" {args.fit} s, scheme {args.scheme}). Theory: the rectangle of the same"
+        " beam and draft"
         " (`_heave_theory.py`)"
         + (
             "; measured: Sundsdal et al. 2025 (data/sundsdal2025_section.csv),"
@@ -226,6 +231,7 @@ def main():
     parser.add_argument("--section", choices=sorted(SECTIONS), default="box")
     parser.add_argument("--offset", type=float, default=0.01)
     add_decay_arguments(parser, tank=3.0, depth=0.4, t_end=3.0, fit=2.5)
+    parser.add_argument("--scheme", default="standard", help="a scene's scheme setting")
     parser.add_argument("--out", help="results file name (default: by section)")
     args = parser.parse_args()
     jax.config.update("jax_enable_x64", True)
@@ -239,6 +245,7 @@ def main():
         offset=args.offset,
         t_end=args.t_end,
         fit=args.fit,
+        scheme=args.scheme,
     )
     write_spacings(path, args, measure_row, markdown)
 
