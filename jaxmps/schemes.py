@@ -103,9 +103,11 @@ def standard(
     by seed 001's dynamic stabilisation instead of the shift and the collision
     guard. Measured at l0 = 1 cm (validation/sloshing_free_decay.py,
     still_water_noise.py): the first sloshing mode's period -0.7 / +0.3 / +0.0 % of
-    linear theory at h/L 0.2 / 0.4 / 0.6 (default: -3.3 / -2.0 / -2.8 %), and the
-    still-water bottom pressure 1.5-21x quieter (0.2-1.0 % of rho g H over
-    seven tanks at 1 and 2 cm, default 0.9-5.7 %), for a semi-implicit step 11-29 %
+    linear theory at h/L 0.2 / 0.4 / 0.6 (default: -3.3 / -2.0 / -2.8 %), and at
+    the scenes' default step the still-water bottom pressure 1.5-21x quieter
+    (0.2-1.0 % of rho g H over seven tanks at 1 and 2 cm, default 0.9-5.7 %; at
+    dt_max = 0.5 ms it is noisier than the default in two of the seven and than
+    `high_accuracy` in all), for a semi-implicit step 11-29 %
     dearer (dam break, 7k particles, benchmarks/NOTES.md §16). Measured once at
     h/L 0.2 / 0.4 / 0.6, dynamic stabilisation with the shift kept gave -1.5 /
     -2.2 / -1.5 %: both the guard and the shift shorten the period. The unshifted

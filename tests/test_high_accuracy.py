@@ -403,10 +403,11 @@ def test_standard_ds_is_the_standard_scheme_with_dynamic_stabilisation():
 
 
 def test_standard_ds_is_quieter_than_standard_in_still_water():
-    """Still water at default settings (0.3 x 0.15 m, l0 = 2 cm): the bottom
-    pressure with dynamic stabilisation is quieter than the default standard's
-    (measured 1.00 % against 2.44 % of rho g (H - y_p); seven tanks in
-    validation/still_water_noise.py) and its mean within 2 %."""
+    """Still water at default settings (0.3 x 0.15 m, l0 = 2 cm, the scene's
+    step): the bottom pressure with dynamic stabilisation is quieter than the
+    default standard's (measured 1.00 % against 2.67 % of rho g (H - y_p); seven
+    tanks in validation/still_water_noise.py) and its mean within 2 %. Not so at
+    every step: at dt_max = 0.5 ms it is noisier in two of those seven tanks."""
     _, standard_noise = _still_water_noise(0.3, 0.15, 0.02, "standard")
     error, noise = _still_water_noise(0.3, 0.15, 0.02, "standard_ds")
     assert noise < 0.75 * standard_noise, f"{noise:.2%} vs {standard_noise:.2%}"
