@@ -100,15 +100,7 @@ def make_scene(
     if not (spacing > 0 and math.isfinite(spacing * spacing)):
         raise ValueError(f"spacing must be positive and finite, got {spacing!r}.")
     dim = position.shape[1]
-    n0, lam = reference_constants(scheme.weight, dim, scheme.r_e)
-    discretisation = Discretisation(
-        dim=dim,
-        spacing=float(spacing),
-        r_e=float(scheme.r_e * spacing),
-        n0=n0,
-        lam=lam * spacing**2,
-        weight=scheme.weight,
-    )
+    discretisation = _discretisation(scheme, dim, spacing)
     if not neighbour_skin >= 0:
         raise ValueError(f"neighbour_skin must be >= 0, got {neighbour_skin!r}.")
     skin = float(neighbour_skin) * spacing
@@ -134,6 +126,20 @@ def make_scene(
         stabiliser=scheme.stabiliser,
         time_step=time_step,
         escape_limit=int(escape_limit),
+    )
+
+
+def _discretisation(scheme: schemes.Scheme, dim: int, spacing: float):
+    """The scheme's weight and influence radius at `spacing`, with n0 and lambda
+    of the regular lattice."""
+    n0, lam = reference_constants(scheme.weight, dim, scheme.r_e)
+    return Discretisation(
+        dim=dim,
+        spacing=float(spacing),
+        r_e=float(scheme.r_e * spacing),
+        n0=n0,
+        lam=lam * spacing**2,
+        weight=scheme.weight,
     )
 
 
