@@ -28,6 +28,8 @@ class Contact(eqx.Module):
         wall_velocity: the mean velocity of the wall particles touched (zero for
             fixed walls; a prescribed motion's for moving ones): friction acts on
             the body's velocity relative to it, shape (b, d).
+        moment: the moment of `force` about the contact point (the touching
+            particles' mean), shape (b, a); None where not measured (zero).
     """
 
     force: Float[Array, "b d"]
@@ -36,6 +38,7 @@ class Contact(eqx.Module):
     pressure_sum: Float[Array, " b"]
     arm: Float[Array, "b d"]
     wall_velocity: Float[Array, "b d"]
+    moment: Float[Array, "b a"] | None = None
 
 
 class AbstractNormalForce(eqx.Module):
@@ -129,8 +132,10 @@ class Coulomb(eqx.Module):
     (other forces, including the contact reaction, already applied) and N the normal
     force: the body sticks (V_t -> 0) if |V_t| <= mu_s N dt / M, otherwise it slides
     and loses mu_k N dt / M of tangential speed. The friction impulse acts at the
-    contact point and so also gives a torque (seed 000 eq. 2.6-5), unless `torque` is
-    False (seed 002: translation only).
+    contact point and so also gives a torque (seed 000 eq. 2.6-5), which the
+    normal forces over the contact face balance while their resultant stays on the
+    face (a block tips only beyond its static limit; `RigidBodies._face`), unless
+    `torque` is False (seed 002: translation only, and nothing tips).
 
     # Choice: seed 000 decides stick/slip per Cartesian component by comparing a
     # friction displacement with the displacement of the other forces; that is not
@@ -169,16 +174,10 @@ class Coulomb(eqx.Module):
         params: Params,
         spacing: float,
         dim: int,
-        inertial_mass: Float[Array, " b"] | None = None,
     ) -> tuple[Float[Array, "b d"], Bool[Array, " b"]]:
-        """The friction impulse per body [N s] and whether each body slides.
-
-        `velocity` is that of the point the impulse acts at and `inertial_mass`
-        the body's mass as that point feels it along the tangent (the body's
-        mass when it acts at the centre, the default)."""
+        """The friction impulse per body [N s] and whether each body slides,
+        from the velocity of each body's centre relative to the walls."""
         normal_force = self.normal(contact, mass, volume, params, spacing, dim)
-        if inertial_mass is not None:
-            mass = inertial_mass
         n = contact.normal
         tangential = velocity - jnp.sum(velocity * n, -1, keepdims=True) * n
         moving = contact.touching
