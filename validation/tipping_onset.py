@@ -1,0 +1,132 @@
+"""Where a rigid block on a slope tips over its lower edge, and whether one that
+stands stays still.
+
+A block (`friction_tilt`, friction torque on, mu = 1.5: too rough to slide) under
+gravity tilted to tan(theta) around its static tipping limit: the resultant of its
+weight leaves its base where tan(theta) > (width - l0) / (height - l0) (its
+outermost particles' centres carry the contact). For each ratio: the largest
+tilt in 2 s, the travel along the slope, and whether it toppled (a tilt beyond 60
+degrees). A cube and a block twice as tall as wide, 2-D (l0 = 0.1 m) and a cube
+in 3-D (l0 = 0.2 m).
+
+Run: python validation/tipping_onset.py  (writes results/tipping_onset_cpu.{json,md})
+"""
+
+import json
+import pathlib
+import time
+
+import jax
+import numpy as np
+from _common import machine_info
+
+import jaxmps
+
+HERE = pathlib.Path(__file__).parent
+G, T, MU = 9.81, 2.0, 1.5
+# (name, dim, width, height, spacing, ratios of tan(theta) to the limit)
+CASES = (
+    ("cube", 2, 1.0, 1.0, 0.1, (0.9, 0.95, 0.98, 1.02, 1.05, 1.1)),
+    ("tall", 2, 0.5, 1.0, 0.1, (0.9, 0.95, 0.98, 1.02, 1.05, 1.1)),
+    ("cube", 3, 1.0, 1.0, 0.2, (0.9, 0.98, 1.02, 1.1)),
+)
+
+
+def tilt_angle(orientation: np.ndarray, dim: int) -> np.ndarray:
+    """The body's tilt from upright [degrees]: the angle in 2-D, the rotation
+    angle of the unit quaternion in 3-D (so 180 at most: a cube that rolled on
+    over two edges reads upright again, hence toppling is read from the largest
+    tilt)."""
+    if dim == 2:
+        return np.degrees(np.abs(orientation[..., 0]))
+    w = np.clip(np.abs(orientation[..., 0]), 0.0, 1.0)
+    return np.degrees(2 * np.arccos(w))
+
+
+def run(name, dim, width, height, l0, ratios):
+    case = jaxmps.scenes.friction_tilt(
+        dim=dim,
+        spacing=l0,
+        block_size=width,
+        block_height=height,
+        friction_torque=True,
+        mu_static=MU,
+        mu_kinetic=MU,
+    )
+    limit = (width - l0) / (height - l0)
+    theta = np.arctan(limit * np.asarray(ratios))
+    gravity = np.zeros((len(ratios), dim))
+    gravity[:, 0], gravity[:, -1] = G * np.sin(theta), -G * np.cos(theta)
+    saves = 40
+    n = saves * round(T / float(case.params.dt) / saves)
+    start = time.perf_counter()
+    out = jaxmps.sweep(
+        case,
+        {"gravity": gravity},
+        n_steps=n,
+        save_every=n // saves,
+        observe=lambda scene, state: state.rigid,
+    )
+    wall = time.perf_counter() - start
+    tilt = tilt_angle(np.asarray(out.saved.orientation)[:, :, 0], dim)
+    travel = np.asarray(out.saved.centre)[:, -1, 0, 0] - float(
+        case.state.rigid.centre[0, 0]
+    )
+    return [
+        dict(
+            block=name,
+            dim=dim,
+            width=width,
+            height=height,
+            spacing=l0,
+            limit=limit,
+            ratio=float(r),
+            tan=float(limit * r),
+            largest_tilt_deg=float(tilt[k].max()),
+            travel_m=float(travel[k]),
+            toppled=bool(tilt[k].max() > 60.0),
+            result=int(np.asarray(out.result)[k]),
+            wall_s=wall,
+        )
+        for k, r in enumerate(ratios)
+    ]
+
+
+def main():
+    jax.config.update("jax_enable_x64", True)
+    rows = [row for case in CASES for row in run(*case)]
+    out = dict(machine=machine_info(), mu=MU, t_end=T, rows=rows)
+    (HERE / "results" / "tipping_onset_cpu.json").write_text(json.dumps(out, indent=1))
+    lines = [
+        "# Tipping onset of a block on a slope (float64, CPU)",
+        "",
+        f"Script: `validation/tipping_onset.py`. `friction_tilt`, friction torque "
+        f"on, mu = {MU}, {T} s. The static limit is tan(theta) = (width - l0) / "
+        "(height - l0).",
+        "",
+        "| block | dim | l0 [m] | limit | tan(theta) / limit | largest tilt [deg] "
+        "| travel [m] | toppled | result |",
+        "|---|---|---|---|---|---|---|---|---|",
+    ]
+    for r in rows:
+        lines.append(
+            f"| {r['block']} {r['width']:g} x {r['height']:g} m | {r['dim']} | "
+            f"{r['spacing']:g} | {r['limit']:.3f} | {r['ratio']:g} | "
+            f"{r['largest_tilt_deg']:.2f} | {r['travel_m']:.4f} | "
+            f"{'yes' if r['toppled'] else 'no'} | {r['result']} |"
+        )
+    lines.append("")
+    for name, dim, *_ in CASES:
+        sub = [r for r in rows if r["block"] == name and r["dim"] == dim]
+        stands = max([r["ratio"] for r in sub if not r["toppled"]], default=None)
+        tips = min([r["ratio"] for r in sub if r["toppled"]], default=None)
+        lines.append(
+            f"- {dim}-D {name}: stands up to {stands} x the limit, topples from "
+            f"{tips} x"
+        )
+    (HERE / "results" / "tipping_onset_cpu.md").write_text("\n".join(lines) + "\n")
+    print("\n".join(lines))
+
+
+if __name__ == "__main__":
+    main()
