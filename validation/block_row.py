@@ -9,27 +9,34 @@ one's push) and apart (`gap=0.2`). Over 0.5 s: each block's travel, its ratio to
 the frictionless slide against the friction share (sin - mu cos) / sin that the
 still-water block of seed 002's T10 follows, and the largest tilt.
 
+Options: --t-end (default 0.5 s), --scheme (the scene's `scheme`, default
+standard), --out (the results' name, default block_row).
+
 Run: python validation/block_row.py  (writes results/block_row_cpu.{json,md})
+     python validation/block_row.py --t-end 2 --scheme standard_ds \
+         --out block_row_2s_standard_ds
 """
 
+import argparse
 import json
 import math
 import pathlib
 import time
 
+import jax
 import numpy as np
 from _common import machine_info
 
 import jaxmps
 
 HERE = pathlib.Path(__file__).parent
-T = 0.5
 TAN = 0.5
 MUS = (0.0, 0.55, 0.25)
 
 
-def run(gap: float, normal: str) -> list[dict]:
+def run(gap: float, normal: str, t_end: float, scheme: str) -> list[dict]:
     case = jaxmps.scenes.block_stack(
+        scheme=scheme,
         friction_normal=normal,
         layout="row",
         blocks=2,
@@ -46,7 +53,7 @@ def run(gap: float, normal: str) -> list[dict]:
             "rigid.mu_static": np.repeat(mus[:, None], 2, 1),
             "rigid.mu_kinetic": np.repeat(mus[:, None], 2, 1),
         },
-        times=np.linspace(T / 10, T, 10),
+        times=np.linspace(t_end / 10, t_end, 10),
     )
     wall = time.perf_counter() - start
     rows = []
@@ -75,18 +82,29 @@ def run(gap: float, normal: str) -> list[dict]:
 
 
 def main():
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--t-end", type=float, default=0.5)
+    parser.add_argument("--scheme", default="standard")
+    parser.add_argument("--out", default="block_row")
+    args = parser.parse_args()
+    jax.config.update("jax_enable_x64", True)
+    T = args.t_end
     rows = []
     for normal in ("submerged_weight", "reaction"):
-        rows += run(0.0, normal) + run(0.2, normal)
-    out = dict(machine=machine_info(), rows=rows)
-    (HERE / "results" / "block_row_cpu.json").write_text(json.dumps(out, indent=1))
+        for gap in (0.0, 0.2):
+            rows += run(gap, normal, T, args.scheme)
+    out = dict(machine=machine_info(), t_end=T, scheme=args.scheme, rows=rows)
+    name = f"{args.out}_cpu"
+    (HERE / "results" / f"{name}.json").write_text(json.dumps(out, indent=1))
     lines = [
         "# A row of blocks on a slope in still water",
         "",
         "Script: `validation/block_row.py`. Two 0.5 m blocks (2 x the water's "
         f"density) side by side, tan(theta) = {TAN}, water 1 m deep, l0 = 0.05 m, "
-        f"{T} s. Travel along the slope; the ratio to the frictionless slide "
-        "against the friction share (sin - mu cos) / sin; the largest tilt.",
+        "float64, "
+        f"scheme {args.scheme}, {T} s. Travel along the slope; the ratio to the "
+        "frictionless slide against the friction share (sin - mu cos) / sin; "
+        "the largest tilt.",
         "",
         "| normal force | gap [m] | block | mu | travel [m] | / frictionless | "
         "share | largest tilt [deg] | result |",
@@ -99,7 +117,7 @@ def main():
             f"{r['ratio_to_frictionless']:.3f} | {r['friction_share']:.3f} | "
             f"{r['largest_tilt_deg']:.2f} | {r['result']} |"
         )
-    (HERE / "results" / "block_row_cpu.md").write_text("\n".join(lines) + "\n")
+    (HERE / "results" / f"{name}.md").write_text("\n".join(lines) + "\n")
     print("\n".join(lines))
 
 
