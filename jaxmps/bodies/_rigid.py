@@ -353,12 +353,11 @@ class RigidBodies(AbstractBodyModel):
         Float[Array, "b d"], Float[Array, "b a"], Float[Array, "b d"], Bool[Array, " b"]
     ]:
         """Friction against walls: (velocity of the centre of mass, angular
-        momentum about it) after the friction impulse, acting at the contact's mean
-        arm, the friction force, and whether each body slides. The law sees the
-        body's velocity relative to the walls it touches (moving walls carry a
-        body that sticks to them). With the friction torque, a body whose contact
-        face can hold it upright (`_face`) takes the law at its centre and the
-        face's couple; one that tips takes it at the contact point."""
+        momentum about it) after the friction impulse, the friction force, and
+        whether each body slides. The law sees the centre's velocity relative to
+        the walls it touches (moving walls carry a body that sticks to them).
+        With the friction torque the impulse acts at the contact's mean point and
+        the contact face's normal forces add their couple (`_face`)."""
         count = self.count
         if self.friction is None:
             return (
@@ -367,18 +366,18 @@ class RigidBodies(AbstractBodyModel):
                 jnp.zeros_like(velocity),
                 jnp.zeros(count, bool),
             )
-        law = functools.partial(
-            self.friction,
+        volume = disc.volume * number
+        impulse, sliding = self.friction(
             contact,
-            mass=mass,
-            volume=disc.volume * number,
-            mu_static=params.rigid.mu_static,
-            mu_kinetic=params.rigid.mu_kinetic,
-            params=params,
-            spacing=disc.spacing,
-            dim=disc.dim,
+            velocity - contact.wall_velocity,
+            mass,
+            volume,
+            params.rigid.mu_static,
+            params.rigid.mu_kinetic,
+            params,
+            disc.spacing,
+            disc.dim,
         )
-        impulse, sliding = law(velocity - contact.wall_velocity)
         if self.friction.torque:
             momentum_l = momentum_l + self._face(
                 disc,
@@ -390,12 +389,7 @@ class RigidBodies(AbstractBodyModel):
                 inertia,
                 reach,
                 law_normal=self.friction.normal(
-                    contact,
-                    mass,
-                    disc.volume * number,
-                    params,
-                    disc.spacing,
-                    disc.dim,
+                    contact, mass, volume, params, disc.spacing, disc.dim
                 ),
             )
         return (
