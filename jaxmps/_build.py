@@ -335,6 +335,7 @@ def add_rigid_bodies(
     pressure: str = bodies.RigidBodies.pressure,
     contact_stiffness: float = bodies.RigidBodies.contact_stiffness,
     contact_damping: float = bodies.RigidBodies.contact_damping,
+    friction_sweeps: int = bodies.RigidBodies.friction_sweeps,
 ) -> tuple[Scene, Params, State]:
     """Turn particles of a built case into rigid bodies.
 
@@ -364,6 +365,9 @@ def add_rigid_bodies(
         contact_stiffness, contact_damping: the contact force's stiffness (a
             fraction of the step's explicit limit; 0 leaves contact to the
             pressure) and damping ratio; see `jaxmps.bodies.RigidBodies`.
+        friction_sweeps: Jacobi sweeps that resolve the friction between bodies
+            together (a stack of three blocks creeps at 0.4 mm/s with 32, 0.1
+            with the default 64; see `jaxmps.bodies.RigidBodies`).
 
     Returns:
         The new (scene, params, state).
@@ -404,6 +408,8 @@ def add_rigid_bodies(
         pressure=pressure,
         contact_stiffness=contact_stiffness,
         contact_damping=contact_damping,
+        friction_sweeps=friction_sweeps,
+        particles=int(np.sum(np.asarray(ids) >= 0)),
     )
     new_state = dataclasses.replace(
         state,

@@ -217,6 +217,57 @@ def test_two_bodies_collide_without_interpenetration():
     assert errors[1] < 0.7 * errors[0]  # first order in dt
 
 
+@pytest.mark.parametrize("dim", [2, 3])
+def test_friction_between_free_bodies_keeps_momentum_and_dissipates(dim):
+    """Two free blocks without gravity meeting off-centre while sliding across
+    each other (the second moves at -0.5 m/s towards the first and 0.4 m/s
+    sideways): with friction between them (mu = 0.5) the total linear momentum
+    is kept to round-off and the angular momentum about the origin to the
+    collision's O(dt) (measured 8e-5 without friction, 3e-4 to 4e-4 with),
+    and the blocks leave with less kinetic energy than without friction
+    (measured 11 % less in 2-D, 25 % in 3-D)."""
+    l0, dt = 0.1, 1e-3
+    a = geometry.block([0.0] * dim, [0.5] * dim, l0)
+    b = geometry.block([0.8] + [0.1] * (dim - 1), [1.3] + [0.6] * (dim - 1), l0)
+    pos = np.concatenate([a, b])
+    lo, hi = [-1.0] * dim, [2.0] + [1.5] * (dim - 1)
+    scene = jaxmps.make_scene(pos, l0, (lo, hi), candidate_capacity=len(pos))
+    params = jaxmps.make_params(dim, dt=dt, gravity=0.0)
+    vel = np.zeros_like(pos)
+    vel[: len(a), 0] = 1.0
+    vel[len(a) :, 0], vel[len(a) :, 1] = -0.5, 0.4
+    state = jaxmps.make_state(scene, pos, np.zeros(len(pos), int), velocity=vel)
+    ids = np.r_[np.zeros(len(a), int), np.ones(len(b), int)]
+    mass = jnp.asarray(np.r_[np.full(len(a), 1e3), np.full(len(b), 2e3)] * l0**dim)
+
+    def observe(scene, s):
+        x, v = s.position[: len(pos)], s.velocity[: len(pos)]
+        if dim == 3:
+            moment = jnp.cross(x, v)
+        else:
+            moment = (x[:, 0] * v[:, 1] - x[:, 1] * v[:, 0])[:, None]
+        return dict(
+            linear=jnp.sum(mass[:, None] * v, axis=0),
+            angular=jnp.sum(mass[:, None] * moment, axis=0),
+            energy=0.5 * jnp.sum(mass * jnp.sum(v**2, axis=-1)),
+        )
+
+    energy = []
+    for mu in (0.0, 0.5):
+        case = jaxmps.add_rigid_bodies(
+            scene, params, state, ids, density=[1000.0, 2000.0], mu_static=mu
+        )
+        n = round(0.4 / dt)
+        out = jaxmps.simulate(*case, n, n // 20, observe=observe)
+        assert out.result == jaxmps.Result.successful
+        saved = {k: np.asarray(v) for k, v in out.saved.items()}
+        np.testing.assert_allclose(saved["linear"] - saved["linear"][0], 0, atol=1e-9)
+        turned = np.abs(saved["angular"] - saved["angular"][0]).max()
+        assert turned < 1e-3 * np.abs(saved["angular"][0]).max()
+        energy.append(saved["energy"][-1])
+    assert energy[1] < 0.95 * energy[0], energy
+
+
 MUS = np.array([0.2, 0.4, 0.6, 0.8])
 
 
@@ -382,6 +433,35 @@ def test_touching_blocks_in_still_water_stick_below_their_coefficient():
     )
     assert np.abs(travel).max() < 1e-3, travel
     assert np.degrees(np.abs(np.asarray(out.saved.orientation))).max() < 0.1
+
+
+def test_stack_of_three_blocks_sticks_below_its_coefficient():
+    """Two 0.5 x 0.25 m blocks stacked on a 2 m base (mu = 1.5 against the
+    floor, 0.66 between the blocks) on a slope of tan(theta) = 0.6 = 0.91 mu,
+    dry: over 1 s every block stays within 0.2 mm and upright (measured 0.00 /
+    0.04 / 0.02 mm; with the friction between bodies resolved once per step,
+    after the walls', 1.9 / 84 / 135 mm)."""
+    case = jaxmps.scenes.block_stack(
+        blocks=3,
+        base_width=2.0,
+        block_height=0.25,
+        dt=0.001,
+        angle=math.degrees(math.atan(0.6)),
+    )
+    mu = jnp.asarray([1.5, 0.66, 0.66])
+    params = eqx.tree_at(
+        lambda p: (p.rigid.mu_static, p.rigid.mu_kinetic), case.params, (mu, mu)
+    )
+    out = jaxmps.simulate(
+        case.scene, params, case.state, 1000, 500, observe=lambda s, st: st.rigid
+    )
+    assert out.result == jaxmps.Result.successful
+    travel = (
+        np.asarray(out.saved.centre)[:, :, 0]
+        - np.asarray(case.state.rigid.centre)[:, 0]
+    )
+    assert np.abs(travel).max() < 2e-4, travel
+    assert np.degrees(np.abs(np.asarray(out.saved.orientation))).max() < 0.5
 
 
 @pytest.mark.slow

@@ -297,6 +297,8 @@ def test_add_rigid_bodies_rejects_bad_input():
         add(scene, params, state, ids, density=500.0, centre_of_mass=[0.1, 0, 0])
     with pytest.raises(ValueError, match="centre_of_mass must be finite"):
         add(scene, params, state, ids, density=500.0, centre_of_mass=[np.nan, 0])
+    with pytest.raises(ValueError, match="friction_sweeps"):
+        add(scene, params, state, ids, density=500.0, friction_sweeps=0)
     # Scene, Params and State must agree.
     s, p, st = add(scene, params, state, ids, density=500.0)
     with pytest.raises(ValueError, match="all be set or all be None"):
@@ -352,6 +354,9 @@ def test_body_scenes_build_and_list():
         jaxmps.scenes.block_stack(friction_normal="weight")
     with pytest.raises(ValueError, match="blocks"):
         jaxmps.scenes.block_stack(blocks=0)
+    for sweeps in (0, 2.5):
+        with pytest.raises(ValueError, match="friction_sweeps"):
+            jaxmps.scenes.block_stack(friction_sweeps=sweeps)
 
 
 def test_restart_with_bodies_is_bit_exact(tmp_path):

@@ -197,3 +197,27 @@ class Coulomb(eqx.Module):
         removed = jnp.where(moving, removed, 0.0)
         impulse = -(mass * removed)[:, None] * direction
         return impulse, sliding & moving
+
+    def spare(
+        self,
+        contact: Contact,
+        velocity: Float[Array, "b d"],
+        mass: Float[Array, " b"],
+        volume: Float[Array, " b"],
+        mu_static: Float[Array, " b"],
+        params: Params,
+        spacing: float,
+        dim: int,
+    ) -> Float[Array, " b"]:
+        """The static capacity [N s] each body's contact keeps after stopping
+        the tangential `velocity` (relative to the walls): mu_s N dt - M |V_t|,
+        negative where the body slides, -1 where it touches no wall or the law
+        is smoothed (no static threshold)."""
+        if self.smoothing > 0:
+            return jnp.full_like(mass, -1.0)
+        normal_force = self.normal(contact, mass, volume, params, spacing, dim)
+        n = contact.normal
+        tangential = velocity - jnp.sum(velocity * n, -1, keepdims=True) * n
+        speed = safe_norm(tangential, contact.touching, placeholder=0.0)
+        spare = mu_static * normal_force * params.dt - mass * speed
+        return jnp.where(contact.touching, spare, -1.0)

@@ -302,6 +302,7 @@ RULES = {
     "pool": Range(0, 2**31 - 1),
     "substeps": _COUNT,
     "blocks": Range(1, 64),
+    "friction_sweeps": Range(1, 10000),
     "block_rows": Range(0, 1000),
     # ratios and coefficients
     "density_ratio": _POSITIVE,
