@@ -407,7 +407,7 @@ def test_touching_blocks_in_still_water_stick_below_their_coefficient():
     """Two 0.5 m blocks side by side and touching, of twice the water's density,
     in 1 m of still water on a slope of tan(theta) = 0.5 = 0.91 mu with seed 002's
     submerged-weight normal force: each stays within 1 mm over 0.5 s, upright
-    (measured 0.01 and 0.25 mm; with the friction at the contact point alone they
+    (measured about 0.1 mm each; with the friction at the contact point alone they
     crept 12.5-14.6 mm and tilted 0.7 degree)."""
     case = jaxmps.scenes.block_stack(
         layout="row",
