@@ -178,11 +178,8 @@ class Coulomb(eqx.Module):
         """The friction impulse per body [N s] and whether each body slides,
         from the velocity of each body's centre relative to the walls."""
         normal_force = self.normal(contact, mass, volume, params, spacing, dim)
-        n = contact.normal
-        tangential = velocity - jnp.sum(velocity * n, -1, keepdims=True) * n
         moving = contact.touching
-        speed = safe_norm(tangential, moving, placeholder=0.0)
-        direction = tangential / jnp.where(speed > 0, speed, 1.0)[:, None]
+        speed, direction = _along_face(contact, velocity)
         capacity_k = mu_kinetic * normal_force * params.dt / mass
         if self.smoothing > 0:
             s = self.smoothing
@@ -216,8 +213,17 @@ class Coulomb(eqx.Module):
         if self.smoothing > 0:
             return jnp.full_like(mass, -1.0)
         normal_force = self.normal(contact, mass, volume, params, spacing, dim)
-        n = contact.normal
-        tangential = velocity - jnp.sum(velocity * n, -1, keepdims=True) * n
-        speed = safe_norm(tangential, contact.touching, placeholder=0.0)
+        speed, _ = _along_face(contact, velocity)
         spare = mu_static * normal_force * params.dt - mass * speed
         return jnp.where(contact.touching, spare, -1.0)
+
+
+def _along_face(
+    contact: Contact, velocity: Float[Array, "b d"]
+) -> tuple[Float[Array, " b"], Float[Array, "b d"]]:
+    """The speed of `velocity` along each body's contact face and its unit
+    direction (zero where the body touches nothing or does not move)."""
+    n = contact.normal
+    tangential = velocity - jnp.sum(velocity * n, -1, keepdims=True) * n
+    speed = safe_norm(tangential, contact.touching, placeholder=0.0)
+    return speed, tangential / jnp.where(speed > 0, speed, 1.0)[:, None]
