@@ -377,13 +377,7 @@ def add_rigid_bodies(
             particles or with a degenerate inertia, inactive body particles, and
             bodies overlapping each other or walls (closer than 0.5 l0).
     """
-    if scene.rigid is not None:
-        raise ValueError("This scene already has rigid bodies; add all in one call.")
-    if scene.elastic is not None:
-        raise ValueError(
-            "Add rigid bodies before elastic ones (the rigid bodies are numbered "
-            "first)."
-        )
+    _refuse_second_rigid(scene)
     active = np.asarray(state.active)
     ids, count = bodies.body_indices(body, scene.capacity, active)
     rigid_params = _rigid_params(params, count, density, mu_static, mu_kinetic)
@@ -422,6 +416,17 @@ def add_rigid_bodies(
         dataclasses.replace(params, rigid=rigid_params),
         new_state,
     )
+
+
+def _refuse_second_rigid(scene: Scene) -> None:
+    """Rigid bodies are added once, and before elastic ones."""
+    if scene.rigid is not None:
+        raise ValueError("This scene already has rigid bodies; add all in one call.")
+    if scene.elastic is not None:
+        raise ValueError(
+            "Add rigid bodies before elastic ones (the rigid bodies are numbered "
+            "first)."
+        )
 
 
 def _mass_properties(

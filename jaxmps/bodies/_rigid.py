@@ -642,6 +642,29 @@ class RigidBodies(AbstractBodyModel):
         # bodies' rotation left out of m_c the sweeps overshot (a square's side
         # point has M / 2.5) and two blocks side by side blew up.
         """
+        rubbing, slots, anchored = self._body_contacts(
+            disc, params, state, load, mass, lever, from_bodies, outward, spare
+        )
+        change, turn = self._sweep_bodies(
+            rubbing, slots, anchored, velocity, momentum_l, mass, inertia
+        )
+        return change, turn, anchored
+
+    def _body_contacts(
+        self,
+        disc: Discretisation,
+        params: Params,
+        state: State,
+        load: FluidLoad,
+        mass: Float[Array, " b"],
+        lever: Float[Array, "n d"],
+        from_bodies: Float[Array, "n d"],
+        outward: Float[Array, "n d"],
+        spare: Float[Array, " b"],
+    ) -> tuple["_Rubbing", Float[Array, " b"], Bool[Array, " b"]]:
+        """`_rub_bodies`' contacts: each touching body particle's partner body,
+        normal, pair middles, Coulomb caps and anchoring (gathered to the body
+        particles' slots), each body's contact slots, and the anchored bodies."""
         pairs = load.pairs
         dt, l0, count = params.dt, disc.spacing, self.count
         member = is_body(state)
@@ -704,11 +727,30 @@ class RigidBodies(AbstractBodyModel):
             keep = touching.reshape((-1,) + (1,) * (x.ndim - 1))
             return jnp.where(keep, x, jnp.asarray(fill, x.dtype))
 
-        index, other = pick(index), pick(other, count)
-        normal, middle, across = pick(normal), pick(middle), pick(across)
-        cap_s, cap_k = pick(cap_s), pick(cap_k)
-        held, partner_held, both = pick(held), pick(partner_held), pick(both)
-        own_fixed, their_fixed = held & ~both, partner_held & ~both
+        picked = (normal, middle, across, cap_s, cap_k, held, partner_held, both)
+        rubbing = _Rubbing(
+            touching, pick(index), pick(other, count), *(pick(x) for x in picked)
+        )
+        return rubbing, slots, anchored
+
+    def _sweep_bodies(
+        self,
+        rubbing: "_Rubbing",
+        slots: Float[Array, " b"],
+        anchored: Bool[Array, " b"],
+        velocity: Float[Array, "b d"],
+        momentum_l: Float[Array, "b a"],
+        mass: Float[Array, " b"],
+        inertia: Float[Array, "b a a"],
+    ) -> tuple[Float[Array, "b d"], Float[Array, "b a"]]:
+        """`_rub_bodies`' Jacobi sweeps over the touching slots: the change of
+        each body's velocity and angular momentum from the impulses."""
+        count = self.count
+        touching, index, other = rubbing.touching, rubbing.index, rubbing.other
+        normal, middle, across = rubbing.normal, rubbing.middle, rubbing.across
+        cap_s, cap_k, both = rubbing.cap_s, rubbing.cap_k, rubbing.both
+        own_fixed = rubbing.held & ~both
+        their_fixed = rubbing.partner_held & ~both
         in_body, j = jnp.where(touching, index, count), jnp.minimum(other, count - 1)
         turn_per = jnp.linalg.inv(inertia)
 
@@ -754,7 +796,7 @@ class RigidBodies(AbstractBodyModel):
             0, self.friction_sweeps, sweep, jnp.zeros_like(middle)
         )
         change, turn = changes(impulse, touching)
-        return change, turn, anchored
+        return change, turn
 
     def _contact(
         self,
@@ -829,6 +871,25 @@ class RigidBodies(AbstractBodyModel):
 def is_body(state: State) -> Bool[Array, " n"]:
     """Active particles that belong to a rigid body."""
     return jnp.logical_and(state.active, state.rigid.body >= 0)
+
+
+class _Rubbing(eqx.Module):
+    """Friction between bodies, per body-particle slot: whether it touches a
+    higher body, its body and that body (count where none), the contact normal,
+    the pair middles from the two centres of mass, the static and kinetic
+    impulse caps, and whether its body, its partner body or both are anchored."""
+
+    touching: Bool[Array, " m"]
+    index: Int[Array, " m"]
+    other: Int[Array, " m"]
+    normal: Float[Array, "m d"]
+    middle: Float[Array, "m d"]
+    across: Float[Array, "m d"]
+    cap_s: Float[Array, " m"]
+    cap_k: Float[Array, " m"]
+    held: Bool[Array, " m"]
+    partner_held: Bool[Array, " m"]
+    both: Bool[Array, " m"]
 
 
 class Exchange(eqx.Module):
