@@ -80,8 +80,8 @@ class RigidBodies(AbstractBodyModel):
     contact_stiffness: float = 0.2
     contact_damping: float = 0.7
     # Choice: 64 Jacobi sweeps of the friction between bodies (see `_rub_bodies`)
-    # hold a stack of three blocks to 0.1 mm/s; they run over the body
-    # particles alone (`particles`, set by `add_rigid_bodies`).
+    # hold a stack of three blocks within 0.05 mm over 1 s; they run over the
+    # body particles alone (`particles`, set by `add_rigid_bodies`).
     friction_sweeps: int = 64
     particles: int | None = None
 
@@ -339,7 +339,6 @@ class RigidBodies(AbstractBodyModel):
             inertia_k,
             from_bodies,
             outward,
-            body_sum,
             spare,
         )
         # an anchored body's walls take the other bodies' friction on it as well
@@ -599,7 +598,6 @@ class RigidBodies(AbstractBodyModel):
         inertia: Float[Array, "b a a"],
         from_bodies: Float[Array, "n d"],
         outward: Float[Array, "n d"],
-        body_sum: Callable[[Shaped[Array, "n ..."]], Shaped[Array, "b ..."]],
         spare: Float[Array, " b"],
     ) -> tuple[Float[Array, "b d"], Float[Array, "b a"], Bool[Array, " b"]]:
         """Coulomb friction between bodies, particle by particle: the change of
