@@ -336,6 +336,7 @@ def add_rigid_bodies(
     contact_stiffness: float = bodies.RigidBodies.contact_stiffness,
     contact_damping: float = bodies.RigidBodies.contact_damping,
     friction_sweeps: int = bodies.RigidBodies.friction_sweeps,
+    release_time=None,
 ) -> tuple[Scene, Params, State]:
     """Turn particles of a built case into rigid bodies.
 
@@ -368,6 +369,9 @@ def add_rigid_bodies(
         friction_sweeps: Jacobi sweeps that resolve the friction between bodies
             together (a stack of three blocks creeps at 0.4 mm/s with 32, 0.1
             with the default 64; see `jaxmps.bodies.RigidBodies`).
+        release_time: the time [s] until which the bodies are held still (a
+            scalar or one per body; `Params.rigid.release_time`): the flow spins
+            up round them before they may move. None: free from the start.
 
     Returns:
         The new (scene, params, state).
@@ -384,6 +388,13 @@ def add_rigid_bodies(
     rigid_params = _mass_properties(
         rigid_params, count, scene.dim, centre_of_mass, gyration
     )
+    if release_time is not None:
+        release = bodies.per_body(release_time, "release_time", count)
+        if not np.all(release >= 0):
+            raise ValueError(f"release_time must be >= 0 [s], got {release_time}.")
+        rigid_params = dataclasses.replace(
+            rigid_params, release_time=jnp.asarray(release, rigid_params.density.dtype)
+        )
     rigid, kind, velocity = bodies.rigid_state(
         np.array(state.position, np.float64),
         np.array(state.velocity, np.float64),

@@ -21,6 +21,7 @@ VALUE_RULES = {
     "rigid.mu_static": ">= 0",
     "rigid.mu_kinetic": ">= 0",
     "rigid.gyration": "positive",
+    "rigid.release_time": ">= 0",
     "elastic.youngs_modulus": "positive",
     "elastic.density": "positive",
     "elastic.mu_static": ">= 0",
@@ -184,6 +185,10 @@ class RigidParams(eqx.Module):
             z in 2-D (shape (b, 1)) and about the body-frame axes x, y, z in 3-D
             (shape (b, 3), principal axes); None for the inertia of the body's
             particles about the centre of mass.
+        release_time: the time [s] until which each body is held still (the
+            fluid flows round it and it reports the load it carries in
+            `State.rigid.force`), shape (b,); None: every body is free from the
+            start. Seed 002 spins its flumes up with the blocks held.
     """
 
     density: Float[Array, " b"] = eqx.field(converter=jnp.asarray)
@@ -193,6 +198,9 @@ class RigidParams(eqx.Module):
         default=None, converter=_optional_array
     )
     gyration: Float[Array, "b a"] | None = eqx.field(
+        default=None, converter=_optional_array
+    )
+    release_time: Float[Array, " b"] | None = eqx.field(
         default=None, converter=_optional_array
     )
 

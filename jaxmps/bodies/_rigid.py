@@ -141,20 +141,19 @@ class RigidBodies(AbstractBodyModel):
                 )
         dim = state.position.shape[-1]
         expected = {
-            "centre_of_mass": (b, dim),
-            "gyration": (b, rot.spin_size(dim)),
+            "centre_of_mass": ((b, dim), "d components"),
+            "gyration": (
+                (b, rot.spin_size(dim)),
+                "one radius per body-frame axis: 1 in 2-D, 3 in 3-D",
+            ),
+            "release_time": ((b,), "one time per body"),
         }
-        for name, shape in expected.items():
+        for name, (shape, rows) in expected.items():
             value = getattr(params.rigid, name)
             if value is not None and value.shape != shape:
                 raise ValueError(
                     f"Params.rigid.{name} has shape {value.shape}; expected {shape} "
-                    f"(one row per body of the Scene's {b}, "
-                    + (
-                        "d components)."
-                        if name == "centre_of_mass"
-                        else "one radius per body-frame axis: 1 in 2-D, 3 in 3-D)."
-                    )
+                    f"(one row per body of the Scene's {b}, {rows})."
                 )
 
     def owner(self, state: State) -> Int[Array, " n"]:
@@ -237,6 +236,9 @@ class RigidBodies(AbstractBodyModel):
             (velocity, momentum_l),
             (mass, number, offset_k, inertia_k),
         )
+        force = mass[:, None] * ((velocity - velocity_k) / dt - params.gravity[None, :])
+        torque = (momentum_l - momentum_k) / dt
+        velocity, momentum_l = _held(params, state.time, velocity, momentum_l)
 
         omega_k = jnp.linalg.solve(inertia_k, momentum_l[..., None])[..., 0]
         centre_of_mass = rs.centre + offset_k + dt * velocity
@@ -252,8 +254,6 @@ class RigidBodies(AbstractBodyModel):
         arm = jnp.einsum("nij,nj->ni", rotation[index], rs.reference)
         position = centre[index] + arm
         particle_velocity = centre_velocity[index] + rot.spin_cross(omega[index], arm)
-        force = mass[:, None] * ((velocity - velocity_k) / dt - params.gravity[None, :])
-        torque = (momentum_l - momentum_k) / dt
         rigid = dataclasses.replace(
             rs,
             centre=centre,
@@ -864,6 +864,16 @@ class RigidBodies(AbstractBodyModel):
             moment=moment,
         )
         return contact, touching_p
+
+
+def _held(params: Params, time, velocity, momentum):
+    """The bodies' velocity and angular momentum, zero for those held still
+    before their `Params.rigid.release_time`."""
+    release = params.rigid.release_time
+    if release is None:
+        return velocity, momentum
+    held = (time < release)[:, None]
+    return jnp.where(held, 0.0, velocity), jnp.where(held, 0.0, momentum)
 
 
 def is_body(state: State) -> Bool[Array, " n"]:

@@ -98,7 +98,12 @@ def batch_params(params: Params, values: dict[str, Any]) -> tuple[Params, Params
     if not values:
         raise ValueError("Nothing to sweep: `values` names no Params field.")
     for name in values:
-        get_field(params, name)
+        if get_field(params, name) is None:
+            raise ValueError(
+                f"Params.{name} is not set in this case (None), so it has no shape "
+                "to sweep; give it a value first (a scene setting or "
+                "`eqx.tree_at`), then sweep it."
+            )
     host = {name: _host_values(name, value) for name, value in values.items()}
     sizes = {name: len(value) for name, value in host.items()}
     if len(set(sizes.values())) != 1:

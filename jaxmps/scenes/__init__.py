@@ -41,6 +41,7 @@ from ._hydrostatic import hydrostatic as _hydrostatic
 from ._hydrostatic import hydrostatic_pressure as hydrostatic_pressure
 from ._porous import accepts_porous
 from ._probes import AbstractProbe as AbstractProbe
+from ._probes import BodiesMoved as BodiesMoved
 from ._probes import BodyValue as BodyValue
 from ._probes import DisplacedDepth as DisplacedDepth
 from ._probes import Displacement as Displacement
@@ -70,12 +71,17 @@ from ._sloshing import standing_wave as _standing_wave
 from ._sloshing import standing_wave_period as standing_wave_period
 from ._tsunami import TSUNAMI_QUAY as _TSUNAMI_QUAY
 from ._tsunami import tsunami_quay as _tsunami_quay
+from ._washout import BLOCK_WASHOUT as _BLOCK_WASHOUT
+from ._washout import MEASURED_HOLES as MEASURED_HOLES
+from ._washout import block_washout as _block_washout
+from ._washout import scour_hole as scour_hole
 from ._wave_tank import DEFAULTS as _WAVE_TANK
 from ._wave_tank import wave_tank as _wave_tank
 
 # Every scene takes the porous-region settings (`_porous.SETTINGS`) as well.
 block_impact = accepts_porous(_block_impact)
 block_stack = accepts_porous(_block_stack)
+block_washout = accepts_porous(_block_washout)
 dam_break = accepts_porous(_dam_break)
 dam_break_box = accepts_porous(_dam_break_box)
 elastic_bar = accepts_porous(_elastic_bar)
@@ -97,6 +103,7 @@ wave_tank = accepts_porous(_wave_tank)
 _REGISTRY = {
     "block_impact": (block_impact, _BLOCK_IMPACT),
     "block_stack": (block_stack, _BLOCK_STACK),
+    "block_washout": (block_washout, _BLOCK_WASHOUT),
     "friction_tilt": (friction_tilt, _FRICTION_TILT),
     "dam_break": (dam_break, _DAM_BREAK),
     "dam_break_box": (dam_break_box, _DAM_BREAK_BOX),

@@ -294,6 +294,7 @@ RULES = {
     "gauges": Range(1, 64),
     "pressure_gauges": Range(0, 64),
     "settle": _NON_NEGATIVE,
+    "release_time": _NON_NEGATIVE,
     "frequency": _NON_NEGATIVE,
     "wave_period": _POSITIVE,
     "ramp_periods": _NON_NEGATIVE,

@@ -22,7 +22,7 @@ from ._flume_bed import (
     optional,
     stored_area,
 )
-from ._probes import FluidCount, WaterLevel
+from ._probes import BodiesMoved, FluidCount, WaterLevel
 
 DEFAULTS = {
     "discharge": 0.04,  # unit discharge q [m^2/s] (seed 002 Ch. 4)
@@ -58,6 +58,9 @@ DEFAULTS = {
     "mu_kinetic": None,
     "friction_normal": "submerged_weight",
     "friction_torque": True,
+    # The blocks are held still until release_time [s] while the flow spins up
+    # round them (seed 002's spin-up with the blocks frozen); None: free at once.
+    "release_time": None,
     "initial_fill": True,  # start with the bed covered at h_in moving at q/h_in
     # ... and standing at least tail_depth over the bed's end (None: no more),
     # moving at q / depth: a start near the level a tail weir holds.
@@ -113,12 +116,14 @@ def flume(**overrides) -> Case:
     in a recess of the reach with their tops level with the apron: PMS rigid
     bodies with friction `mu_static`, `mu_kinetic` against the bed and each
     other, the normal force `friction_normal` (default seed 002's submerged
-    weight).
+    weight). With `release_time` they are held still until then while the
+    flow spins up round them.
 
     Probes: `fluid_count`; `level_upstream`, `level_middle`,
     `level_downstream` (depth over the local bed at 0.25, 0.5 and 0.9 of the
     bed); with blocks, `block{k}_x`, `block{k}_y`, `block{k}_angle` for each
-    row k counted from the apron.
+    row k counted from the apron, and `blocks_out`: how many have left their
+    place (moved by more than one block length).
     """
     c = resolve("flume", DEFAULTS, overrides)
     if int(c["dim"]) != 2:
@@ -172,6 +177,9 @@ def flume(**overrides) -> Case:
     if len(blocks):
         scene, params, state = _add_blocks(c, scene, params, state, body, len(fluid))
         probes += block_probes(int(c["block_rows"]))
+        probes += (
+            BodiesMoved("blocks_out", state.rigid.centre, float(c["block_length"])),
+        )
     config = {
         **c,
         "inflow_depth": h_in,
@@ -331,6 +339,7 @@ def _add_blocks(c: dict, scene, params, state, body, first: int):
         mu_kinetic=c["mu_kinetic"],
         friction=coulomb(c),
         pressure="pairs",
+        release_time=c["release_time"],
     )
 
 

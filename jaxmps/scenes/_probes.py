@@ -295,6 +295,21 @@ class BodyValue(AbstractProbe):
         return value[self.axis]
 
 
+class BodiesMoved(AbstractProbe):
+    """How many rigid bodies lie farther than `distance` [m] from where they
+    started (`start`: their centres then, shape (b, d)); a block counts as
+    washed out once it has left its place by more than its own length."""
+
+    name: str
+    start: Float[Array, "b d"] = eqx.field(converter=jnp.asarray)
+    distance: float
+
+    def __call__(self, scene: Scene, state: State):
+        step = state.rigid.centre - self.start
+        squared = sum(step[:, k] ** 2 for k in range(step.shape[-1]))
+        return jnp.sum(squared > self.distance**2).astype(step.dtype)
+
+
 def _walls_in_box(state: State, lower, upper):
     """The active pressure-wall particles inside the box [lower, upper]."""
     x = state.position

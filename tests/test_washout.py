@@ -1,0 +1,182 @@
+"""Bodies held still until a release time (seed 002 spins its flumes up with the
+blocks frozen), the washout probe, and the `block_washout` scene: seed 002's
+fixed-bed groundsill with the scour hole its bed lowering implies."""
+
+import dataclasses
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import jaxmps
+
+jax.config.update("jax_enable_x64", True)
+
+# A block of 5 x 5 particles on a floor tilted by 40 degrees, mu = 0.5: it
+# slides at g (sin 40 - 0.5 cos 40) = 2.548 m/s^2 once free.
+TILT = dict(angle=40.0, spacing=0.02, block_size=0.1, floor_length=0.6, settle=0.0)
+
+
+def _released(case, release):
+    return eqx.tree_at(
+        lambda p: p.rigid.release_time,
+        case.params,
+        jnp.asarray(release, case.params.dt.dtype),
+        is_leaf=lambda x: x is None,
+    )
+
+
+def test_held_block_stays_until_its_release_then_slides_by_coulomb():
+    case = jaxmps.scenes.friction_tilt(**TILT)
+    params = _released(case, [0.1])
+    times = np.linspace(0.02, 0.3, 15)
+    out = jaxmps.simulate(
+        case.scene,
+        params,
+        case.state,
+        times=times,
+        observe=jaxmps.scenes.observe_probes(case.probes),
+    )
+    x = np.asarray(out.saved["block_x"])
+    x0 = float(case.state.rigid.centre[0, 0])
+    held = times < 0.1 - 1e-9
+    assert np.all(x[held] == x0)  # not a round-off's worth of motion
+    a = 9.81 * (np.sin(np.radians(40)) - 0.5 * np.cos(np.radians(40)))
+    free = times > 0.15
+    theory = 0.5 * a * (times[free] - 0.1) ** 2
+    # measured: within 0.1 % (0.05100 m against 0.05097 m at 0.3 s)
+    np.testing.assert_allclose(x[free] - x0, theory, rtol=0.01)
+
+
+def test_release_times_sweep_as_one_batch():
+    """Per member, per body: the batch gives what each run gives alone."""
+    case = jaxmps.scenes.friction_tilt(**TILT, t_end=0.2)
+    release = np.array([[0.05], [0.15]])
+    with pytest.raises(ValueError, match="rigid.release_time is not set"):
+        jaxmps.sweep(case, {"rigid.release_time": release}, times=[0.2])
+    case = eqx.tree_at(lambda c: c.params, case, _released(case, [0.0]))
+    batch = jaxmps.sweep(case, {"rigid.release_time": release}, times=[0.2])
+    for member, r in enumerate(release):
+        alone = jaxmps.simulate(
+            case.scene,
+            _released(case, r),
+            case.state,
+            times=[0.2],
+            observe=jaxmps.scenes.observe_probes(case.probes),
+        )
+        np.testing.assert_allclose(
+            np.asarray(batch.saved["block_x"])[member],
+            np.asarray(alone.saved["block_x"]),
+            rtol=1e-12,
+        )
+    moved = np.asarray(batch.saved["block_x"])[:, -1] - float(
+        case.state.rigid.centre[0, 0]
+    )
+    assert moved[0] > 3 * moved[1] > 0  # released earlier, further down
+
+
+def test_release_time_refusals():
+    case = jaxmps.scenes.friction_tilt(**TILT)
+    with pytest.raises(ValueError, match="release_time must be finite and >= 0"):
+        jaxmps.scenes.flume(
+            crest_length=0.1,
+            reach_length=0.2,
+            block_rows=2,
+            release_time=-1.0,
+        )
+    with pytest.raises(ValueError, match=r"Params.rigid.release_time has shape \(2,\)"):
+        jaxmps.simulate(case.scene, _released(case, [0.1, 0.2]), case.state, n_steps=1)
+    with pytest.raises(ValueError, match=r"Params.rigid.release_time must be >= 0"):
+        dataclasses.replace(case.params.rigid, release_time=[-0.1])
+    scene, params, state = _bare_block()
+    owner = np.where(np.arange(scene.capacity) < 9, 0, -1)
+    with pytest.raises(ValueError, match="release_time must be >= 0"):
+        jaxmps.add_rigid_bodies(
+            scene, params, state, owner, density=2.0e3, release_time=-2
+        )
+
+
+def _bare_block():
+    """A 3 x 3 block of particles in an empty box (no bodies yet)."""
+    l0 = 0.1
+    block = jaxmps.geometry.block([0.0, 0.0], [0.3, 0.3], l0)
+    walls, wall_kind = jaxmps.geometry.tank([-1.0, -1.0], [1.0, 1.0], l0)
+    position = np.concatenate([block, walls])
+    kind = np.concatenate([np.zeros(len(block), int), wall_kind])
+    scene = jaxmps.make_scene(position, l0, ([-2, -2], [2, 2]))
+    params = jaxmps.make_params(2, dt=1e-3)
+    return scene, params, jaxmps.make_state(scene, position, kind)
+
+
+def test_scour_hole_follows_the_bed_lowering_between_the_measured_holes():
+    holes = jaxmps.scenes.MEASURED_HOLES
+    for drop, hole in holes.items():
+        np.testing.assert_allclose(jaxmps.scenes.scour_hole(drop), hole)
+    np.testing.assert_allclose(jaxmps.scenes.scour_hole(0.03), (0.145, 0.057, 0.0105))
+    # held at the nearer measured hole outside the measured range
+    np.testing.assert_allclose(jaxmps.scenes.scour_hole(0.0), holes[0.02])
+    np.testing.assert_allclose(jaxmps.scenes.scour_hole(0.06), holes[0.04])
+
+
+def test_block_washout_is_seed_002s_fixed_bed_case():
+    case = jaxmps.scenes.block_washout(bed_lowering=0.04, release_time=1.0, t_end=2.0)
+    c, l0 = case.config, 0.0025
+    # the seed's blocks at 2.5 mm: 1.75 x 1.25 cm, 2597 kg/m^3 (the experiment's
+    # 14.2 g over 2.5 cm of width), 16 rows 2.5 mm apart
+    assert (c["block_length"], c["block_height"], c["block_gap"]) == pytest.approx(
+        (0.0175, 0.0125, 0.0025)
+    )
+    assert c["block_density"] == pytest.approx(2597, rel=1e-3)
+    np.testing.assert_allclose(case.params.rigid.density, c["block_density"])
+    np.testing.assert_allclose(case.params.rigid.release_time, np.full(16, 1.0))
+    # fed at the critical depth of q = 0.006 m^2/s (1.54 cm), on the lattice
+    assert c["inflow_depth"] == pytest.approx(0.015)
+    # Delta H = 4 cm: Case 3-3's hole, the last block's whole face exposed
+    assert c["scour_length"] == pytest.approx(0.1)
+    assert c["scour_exposure"] == pytest.approx(c["block_height"])
+    profile = jaxmps.scenes._flume_bed.bed_profile(
+        c, c["bed_length"], -(jaxmps.geometry.layers_for(case.scene.r_e / l0) + 1) * l0
+    )
+    end = c["apron_end"] + 16 * 0.02  # the first row one gap below the apron
+    assert c["protection_end"] == pytest.approx(end)
+    assert profile.height(end + 0.05) == pytest.approx(-0.02 - 0.05)  # deepest
+    assert profile.height(1.9) == pytest.approx(-0.02 - 0.04)  # lowered bed
+    # the blocks are the flume's PMS bodies; none has moved at the start
+    names = [p.name for p in case.probes]
+    assert "block15_x" in names and "blocks_out" in names
+    out = jaxmps.scenes.observe_probes(case.probes)(case.scene, case.state)
+    assert float(out["blocks_out"]) == 0.0
+    # Delta H = 2 cm: Case 3-2's hole, 0.8 cm exposed (3 spacings on this lattice)
+    gentle = jaxmps.scenes.block_washout(bed_lowering=0.02, t_end=1.0)
+    assert gentle.config["scour_exposure"] == pytest.approx(0.0075)
+    assert gentle.config["scour_length"] == pytest.approx(0.19)
+
+
+def test_blocks_out_counts_the_blocks_that_left_their_place():
+    case = jaxmps.scenes.block_washout(
+        spacing=0.005,
+        block_length=0.02,
+        block_height=0.015,
+        block_gap=0.0,
+        block_rows=4,
+        t_end=1.0,
+    )
+    probe = next(p for p in case.probes if p.name == "blocks_out")
+    centre = case.state.rigid.centre
+    state = eqx.tree_at(
+        lambda s: s.rigid.centre,
+        case.state,
+        centre.at[3, 0].add(0.021).at[2, 1].add(0.019).at[1, 0].add(-0.03),
+    )
+    assert float(probe(case.scene, state)) == 2.0  # 2.1 cm and 3 cm > 2 cm; 1.9 not
+
+
+def test_block_washout_refuses_what_flume_refuses():
+    with pytest.raises(ValueError, match="Unknown parameter.*'block_washout'"):
+        jaxmps.scenes.block_washout(tail_length=0.3)
+    with pytest.raises(ValueError, match="bed_length"):
+        jaxmps.scenes.block_washout(bed_length=1.0)
+    with pytest.raises(ValueError, match="release_time must be"):
+        jaxmps.scenes.block_washout(release_time=-5.0)
