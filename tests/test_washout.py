@@ -180,3 +180,14 @@ def test_block_washout_refuses_what_flume_refuses():
         jaxmps.scenes.block_washout(bed_length=1.0)
     with pytest.raises(ValueError, match="release_time must be"):
         jaxmps.scenes.block_washout(release_time=-5.0)
+
+
+def test_critical_feed_carries_each_discharge_through_whole_rows():
+    case = jaxmps.scenes.block_washout(discharge=0.012, block_rows=2, t_end=1.0)
+    assert case.config["inflow_depth"] == pytest.approx(0.025)  # h_c 2.45 cm
+    for q, rows in ((0.006, 6), (0.009, 8), (0.012, 10)):  # h_c 1.54, 2.02, 2.45 cm
+        velocity, depth = jaxmps.scenes.critical_feed(case, q)
+        assert depth == pytest.approx(rows * 0.0025)
+        assert velocity * depth == pytest.approx(q)
+    with pytest.raises(ValueError, match="build it for the largest discharge"):
+        jaxmps.scenes.critical_feed(case, 0.02)

@@ -74,6 +74,7 @@ from ._tsunami import tsunami_quay as _tsunami_quay
 from ._washout import BLOCK_WASHOUT as _BLOCK_WASHOUT
 from ._washout import MEASURED_HOLES as MEASURED_HOLES
 from ._washout import block_washout as _block_washout
+from ._washout import critical_feed as critical_feed
 from ._washout import scour_hole as scour_hole
 from ._wave_tank import DEFAULTS as _WAVE_TANK
 from ._wave_tank import wave_tank as _wave_tank

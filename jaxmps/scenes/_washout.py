@@ -1,6 +1,11 @@
 """Bed-protection blocks below a groundsill on a fixed, scoured bed: seed 002's
 washout cases (Ch. 5) and its fixed-bed failure limit (Method A, §8.2)."""
 
+import dataclasses
+
+import equinox as eqx
+import jax.numpy as jnp
+
 from ._case import Case
 from ._common import resolve, whole
 from ._flume import DEFAULTS as _FLUME
@@ -89,7 +94,9 @@ def block_washout(**overrides) -> Case:
     Seed 002's failure criterion is the washout of the last row: the probe
     `blocks_out` counts the blocks that have left their place; `block{k}_x`
     etc. are the flume's (k = 0 beside the apron, the last row k = rows - 1).
-    Everything else is `flume`'s (`jaxmps.scenes.flume`).
+    Everything else is `flume`'s (`jaxmps.scenes.flume`). `Params.inflow.depth`
+    is set to the depth fed, so that a batch of discharges (`critical_feed`) runs as one
+    sweep on the case built for the largest.
     """
     c = resolve("block_washout", BLOCK_WASHOUT, overrides)
     hole = scour_hole(float(c["bed_lowering"]))
@@ -108,12 +115,40 @@ def block_washout(**overrides) -> Case:
         protection = int(c["block_rows"]) * (length + gap)
         c["reach_length"] = protection + c["scour_length"]
     case = flume(**c)
+    # The depth fed, given (the layer's full height), so that a sweep can feed
+    # less: the failure matrix's discharges as one batch on the case built for
+    # the largest.
+    inflow = case.params.inflow
+    params = eqx.tree_at(
+        lambda p: p.inflow,
+        case.params,
+        dataclasses.replace(
+            inflow,
+            depth=jnp.asarray(case.config["inflow_depth"], inflow.velocity.dtype),
+        ),
+    )
     return Case(
         "block_washout",
         case.scene,
-        case.params,
+        params,
         case.state,
         case.probes,
         case.t_end,
         {**case.config, "block_density": c["block_density"], "hole": hole},
     )
+
+
+def critical_feed(case: Case, discharge: float) -> tuple[float, float]:
+    """The (`inflow.velocity`, `inflow.depth`) that feed `discharge` [m^2/s] at
+    its critical depth through `case`'s inflow (built for a discharge at least
+    as large): whole rows of the lattice, at the speed that carries `discharge`
+    through them."""
+    l0, g = case.config["spacing"], case.config["gravity"]
+    rows = max(1, round((discharge**2 / g) ** (1 / 3) / l0))
+    if rows * l0 > case.config["inflow_depth"] + 1e-12:
+        raise ValueError(
+            f"discharge={discharge:g} m^2/s needs {rows} rows of inflow but the case "
+            f"feeds {case.config['inflow_depth']:g} m; build it for the largest "
+            "discharge."
+        )
+    return discharge / (rows * l0), rows * l0
