@@ -209,16 +209,15 @@ def plot(rows, path) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, ax = plt.subplots(figsize=(7, 4))
+    fig, (ax, bx) = plt.subplots(1, 2, figsize=(11, 4))
     for r in rows:
-        ax.step(
-            r["times"],
-            r["blocks_out"],
-            where="post",
-            label=f"q {r['discharge']:g}, dH {100 * r['bed_lowering']:g} cm",
-        )
+        label = f"q {r['discharge']:g}, dH {100 * r['bed_lowering']:g} cm"
+        ax.step(r["times"], r["blocks_out"], where="post", label=label)
+        bx.plot(r["times"], r["last_row_move_mm"], label=label)
     ax.set_xlabel("time after release [s]")
     ax.set_ylabel("rows washed out")
+    bx.set_xlabel("time after release [s]")
+    bx.set_ylabel("last row's displacement [mm]")
     ax.legend(fontsize=7)
     fig.tight_layout()
     fig.savefig(path, dpi=100)
@@ -237,11 +236,20 @@ def main() -> None:
     parser.add_argument(
         "--serial", action="store_true", help="one run per discharge (faster on CPU)"
     )
+    parser.add_argument(
+        "--replot", action="store_true", help="redraw the saved results' plot"
+    )
     args = parser.parse_args()
     tag = args.tag or f"{args.spacing * 1e3:g}mm"
+    stem = HERE / "results" / f"block_washout_{tag}_cpu"
+    if args.replot:
+        plot(
+            json.loads(stem.with_suffix(".json").read_text())["rows"],
+            stem.with_suffix(".png"),
+        )
+        return
     info = machine_info()
     rows = [row for lowering in args.lowerings for row in run_lowering(args, lowering)]
-    stem = HERE / "results" / f"block_washout_{tag}_cpu"
     stem.with_suffix(".json").write_text(
         json.dumps(dict(args=vars(args), machine=info, rows=rows), indent=1)
     )
