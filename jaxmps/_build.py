@@ -357,21 +357,17 @@ def add_rigid_bodies(
         gyration: radii of gyration about the centre of mass [m] (about z in 2-D;
             about the body-frame axes in 3-D), for all bodies or per body; None for
             the inertia of the body's particles (`Params.rigid.gyration`).
-        friction: a `jaxmps.bodies.Coulomb` law, or None for frictionless contact
-            (default: that of `jaxmps.bodies.RigidBodies`).
-        contact_distance: see `jaxmps.bodies.RigidBodies` (and its default).
+        friction: a `jaxmps.bodies.Coulomb` law, or None for frictionless contact.
+        contact_distance, friction_sweeps and the defaults: see
+            `jaxmps.bodies.RigidBodies`.
         pressure: how the pressure acts on the bodies, "pairs" (contact and
             friction) or "fluid" (floating bodies at Archimedes' draft); see
             `jaxmps.bodies.RigidBodies`.
         contact_stiffness, contact_damping: the contact force's stiffness (a
             fraction of the step's explicit limit; 0 leaves contact to the
             pressure) and damping ratio; see `jaxmps.bodies.RigidBodies`.
-        friction_sweeps: Jacobi sweeps that resolve the friction between bodies
-            together (a stack of three blocks creeps at 0.4 mm/s with 32, 0.1
-            with the default 64; see `jaxmps.bodies.RigidBodies`).
-        release_time: the time [s] until which the bodies are held still (a
-            scalar or one per body; `Params.rigid.release_time`): the flow spins
-            up round them before they may move. None: free from the start.
+        release_time: the bodies are held still until then [s] (a scalar or one
+            per body; `Params.rigid.release_time`); None: free from the start.
 
     Returns:
         The new (scene, params, state).
@@ -388,13 +384,7 @@ def add_rigid_bodies(
     rigid_params = _mass_properties(
         rigid_params, count, scene.dim, centre_of_mass, gyration
     )
-    if release_time is not None:
-        release = bodies.per_body(release_time, "release_time", count)
-        if not np.all(release >= 0):
-            raise ValueError(f"release_time must be >= 0 [s], got {release_time}.")
-        rigid_params = dataclasses.replace(
-            rigid_params, release_time=jnp.asarray(release, rigid_params.density.dtype)
-        )
+    rigid_params = _release_times(rigid_params, count, release_time)
     rigid, kind, velocity = bodies.rigid_state(
         np.array(state.position, np.float64),
         np.array(state.velocity, np.float64),
@@ -426,6 +416,18 @@ def add_rigid_bodies(
         dataclasses.replace(scene, rigid=model),
         dataclasses.replace(params, rigid=rigid_params),
         new_state,
+    )
+
+
+def _release_times(rigid: RigidParams, count: int, release_time) -> RigidParams:
+    """`rigid` with the bodies' release times (None: free from the start)."""
+    if release_time is None:
+        return rigid
+    release = bodies.per_body(release_time, "release_time", count)
+    if not np.all(release >= 0):
+        raise ValueError(f"release_time must be >= 0 [s], got {release_time}.")
+    return dataclasses.replace(
+        rigid, release_time=jnp.asarray(release, rigid.density.dtype)
     )
 
 

@@ -139,7 +139,6 @@ def flume(**overrides) -> Case:
     rows = int(round(h_in / l0))
     profile = bed_profile(c, length, -(layers + 1) * l0)
     end = profile.knots[-1, 1]
-
     level, top = _heights(c, h_in, weir, end, length)
     inflow_pts, inflow_kind, upstream, upstream_kind, bed, bed_kind = _walls(
         c, profile, rows, max(top, level + 4 * l0), weir, length
@@ -150,7 +149,6 @@ def flume(**overrides) -> Case:
     position = np.concatenate([fluid, blocks, inflow_pts, upstream, bed])
     kind = _kinds(len(fluid) + len(blocks), inflow_kind, upstream_kind, bed_kind)
     n_fluid, first_wall = len(fluid), len(fluid) + len(blocks)
-
     held = [end + level] if weir else []
     held = max(held + ([] if tail is None else [tail]), default=None)
     area = stored_area(profile, length, h_in, held, l0)
@@ -174,12 +172,9 @@ def flume(**overrides) -> Case:
     velocity = _velocities(position, n_fluid, speed, inflow_slots, u_in)
     state = make_state(scene, position, kind, velocity=velocity)
     probes = _level_probes(profile, length, l0)
-    if len(blocks):
-        scene, params, state = _add_blocks(c, scene, params, state, body, len(fluid))
-        probes += block_probes(int(c["block_rows"]))
-        probes += (
-            BodiesMoved("blocks_out", state.rigid.centre, float(c["block_length"])),
-        )
+    scene, params, state, probes = _add_blocks(
+        c, body, n_fluid, (scene, params, state, probes)
+    )
     config = {
         **c,
         "inflow_depth": h_in,
@@ -325,11 +320,16 @@ def _blocks(c: dict, profile, l0: float):
     return np.concatenate(blocks), body
 
 
-def _add_blocks(c: dict, scene, params, state, body, first: int):
-    """The blocks (from slot `first`) as PMS rigid bodies with friction."""
+def _add_blocks(c: dict, body, first: int, case: tuple) -> tuple:
+    """The (scene, params, state, probes) of `case` with the blocks (from slot
+    `first`) as PMS rigid bodies with friction, and their probes: each one's
+    position and angle, and how many have left their place."""
+    if not len(body):
+        return case
+    scene, params, state, probes = case
     owner = np.full(scene.capacity, -1)
     owner[first : first + len(body)] = body
-    return add_rigid_bodies(
+    scene, params, state = add_rigid_bodies(
         scene,
         params,
         state,
@@ -341,6 +341,8 @@ def _add_blocks(c: dict, scene, params, state, body, first: int):
         pressure="pairs",
         release_time=c["release_time"],
     )
+    moved = BodiesMoved("blocks_out", state.rigid.centre, float(c["block_length"]))
+    return scene, params, state, probes + block_probes(int(c["block_rows"])) + (moved,)
 
 
 def _heights(c: dict, h_in: float, weir: float, end: float, length: float):
