@@ -101,7 +101,7 @@ def _cmd_run(args) -> int:
     if restart:
         data = read_run(source)
         scene = str(data.attrs["scene"])
-        overrides = {**data.config, **overrides}
+        overrides = {**scenes.stored_settings(scene, data.config), **overrides}
     case = scenes.build(scene, **overrides)
     n = int(case.state.active.sum())
     dt = float(case.params.dt)

@@ -3,6 +3,7 @@ blocks frozen), the washout probe, and the `block_washout` scene: seed 002's
 fixed-bed groundsill with the scour hole its bed lowering implies."""
 
 import dataclasses
+import json
 
 import equinox as eqx
 import jax
@@ -191,3 +192,24 @@ def test_critical_feed_carries_each_discharge_through_whole_rows():
         assert velocity * depth == pytest.approx(q)
     with pytest.raises(ValueError, match="build it for the largest discharge"):
         jaxmps.scenes.critical_feed(case, 0.02)
+
+
+def test_a_stored_config_rebuilds_the_case():
+    """A run file's config holds derived values beside the settings (the
+    flume's `apron_end`, the hole): a restart rebuilds from the settings."""
+    case = jaxmps.scenes.block_washout(
+        spacing=0.005,
+        block_length=0.02,
+        block_height=0.015,
+        block_gap=0.0,
+        block_rows=3,
+        release_time=0.5,
+        t_end=1.0,
+    )
+    config = json.loads(jaxmps.io._hdf5.config_json(case.config))
+    with pytest.raises(ValueError, match="Unknown parameter"):
+        jaxmps.scenes.build("block_washout", **config)
+    settings = jaxmps.scenes.stored_settings("block_washout", config)
+    again = jaxmps.scenes.build("block_washout", **settings)
+    np.testing.assert_array_equal(again.state.position, case.state.position)
+    np.testing.assert_array_equal(again.params.rigid.release_time, [0.5] * 3)

@@ -130,6 +130,15 @@ def available() -> dict[str, dict]:
     return {name: {**COMMON, **d} for name, (_, d) in sorted(_REGISTRY.items())}
 
 
+def stored_settings(name: str, config: dict) -> dict:
+    """The settings of scene `name` in a case's stored `config` (a run file's),
+    without the values the scene derived and stored beside them (the flume's
+    `apron_end`, a standing wave's period...), so that `build(name, **...)`
+    rebuilds the case."""
+    valid = available().get(name, {})
+    return {key: value for key, value in config.items() if key in valid}
+
+
 def build(name: str, **overrides) -> Case:
     """Build scene `name` with parameter overrides (ValueError on unknown names)."""
     if name not in _REGISTRY:
