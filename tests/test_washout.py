@@ -17,6 +17,8 @@ jax.config.update("jax_enable_x64", True)
 
 # A block of 5 x 5 particles on a floor tilted by 40 degrees, mu = 0.5: it
 # slides at g (sin 40 - 0.5 cos 40) = 2.548 m/s^2 once free.
+# The seed's blocks at l0 = 5 mm (§8.3: 2.0 x 1.5 cm, no gaps).
+COARSE = dict(spacing=0.005, block_length=0.02, block_height=0.015, block_gap=0.0)
 TILT = dict(angle=40.0, spacing=0.02, block_size=0.1, floor_length=0.6, settle=0.0)
 
 
@@ -157,10 +159,7 @@ def test_block_washout_is_seed_002s_fixed_bed_case():
 
 def test_blocks_out_counts_the_blocks_that_left_their_place():
     case = jaxmps.scenes.block_washout(
-        spacing=0.005,
-        block_length=0.02,
-        block_height=0.015,
-        block_gap=0.0,
+        **COARSE,
         block_rows=4,
         t_end=1.0,
     )
@@ -198,10 +197,7 @@ def test_a_stored_config_rebuilds_the_case():
     """A run file's config holds derived values beside the settings (the
     flume's `apron_end`, the hole): a restart rebuilds from the settings."""
     case = jaxmps.scenes.block_washout(
-        spacing=0.005,
-        block_length=0.02,
-        block_height=0.015,
-        block_gap=0.0,
+        **COARSE,
         block_rows=3,
         release_time=0.5,
         t_end=1.0,
