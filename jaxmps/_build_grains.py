@@ -53,6 +53,7 @@ def add_grains(
     attached=None,
     detach_distance: float = bodies.Grains.detach_distance,
     junction_correction: bool | None = None,
+    release_time: float | None = None,
 ) -> tuple[Scene, Params, State]:
     """Turn particles of a built case into DEM grains (seed 002 §5): spheres of
     one particle each (`Kind.SEDIMENT`), in contact with one another and with the
@@ -71,7 +72,10 @@ def add_grains(
             submerged density rho_s - rho_w, seed 002 §5.1).
         stiffness: the normal contact stiffness k_n [N/m]; None: the stiffness
             at which the heaviest grain, meeting a wall at `speed`, overlaps it
-            by `overlap` of its diameter: k_n = m (speed / (overlap d))^2.
+            by `overlap` of its diameter: k_n = m (speed / (overlap d))^2;
+            "rule": seed 002's rule (pi^2 / 200) m / dt^2 of the lightest grain
+            at `Params.dt` (`bodies.rule_stiffness`: one DEM sub-step per
+            step; soft at a semi-implicit step).
         overlap: that overlap, as a share of the diameter (0.02).
         speed: that speed [m/s]; None: the free-fall speed sqrt(2 g H) over the
             height H spanned by the grains and the fluid.
@@ -114,6 +118,10 @@ def add_grains(
             solver's `wall_pressure="facing"`, whose walls take the fluid's
             pressure whatever their own number density (measured:
             validation/bed_junction.py).
+        release_time: the grains feel no fluid force until then [s], settling
+            into the bed under their own weight while the flow spins up
+            (`Params.grains.release_time`; seed 002's spin-up with the grains
+            fixed); None: from the start.
 
     Returns:
         The new (scene, params, state).
@@ -148,6 +156,7 @@ def add_grains(
         "stiffness": stiffness,
         "lift": lift,
         "rolling": rolling,
+        "release_time": release_time,
     }
     grain_params = _material(
         params, values, position, selected | fluid, sizes, submerged, overlap, speed
@@ -201,6 +210,16 @@ def _material(params, values, position, mobile, sizes, submerged, overlap, speed
     """The grains' `GrainParams` from the material settings, checked, with the
     default stiffness where none is given (`_stiffness`)."""
     _check_material(params, values, submerged)
+    if isinstance(values["stiffness"], str):
+        if values["stiffness"] != "rule":
+            raise ValueError(
+                f"stiffness={values['stiffness']!r}: give a number of N/m, 'rule' "
+                "(seed 002's rule at Params.dt) or None (the overlap rule)."
+            )
+        values = dict(values)
+        water = float(params.density) if submerged else 0.0
+        mass = (float(values["density"]) - water) * bodies.sphere_volume(sizes.min())
+        values["stiffness"] = bodies.rule_stiffness(mass, float(params.dt))
     if values["stiffness"] is None:
         values = dict(values)
         values["stiffness"] = _stiffness(
@@ -422,7 +441,9 @@ def _grain_params(params: Params, values: dict) -> GrainParams:
     """The grains' Params in the dtype of `params` (`GrainParams` checks the
     ranges by name)."""
     dtype = params.density.dtype
-    return GrainParams(**{k: jnp.asarray(v, dtype) for k, v in values.items()})
+    return GrainParams(
+        **{k: jnp.asarray(v, dtype) for k, v in values.items() if v is not None}
+    )
 
 
 def _refuse_overlaps(position: np.ndarray, sizes: np.ndarray) -> None:

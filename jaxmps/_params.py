@@ -34,6 +34,7 @@ VALUE_RULES = {
     "grains.stiffness": "positive",
     "grains.lift": ">= 0",
     "grains.rolling": ">= 0",
+    "grains.release_time": ">= 0",
 }
 
 
@@ -271,6 +272,11 @@ class GrainParams(eqx.Module):
         rolling: the rolling resistance coefficient mu_r: a contact resists the
             relative spin of its grains with a couple of at most mu_r R* F_n
             (0 in seed 002, whose spheres roll freely; angular sand resists).
+        release_time: the time [s] until which the grains feel no fluid force:
+            they settle under their own weight while the flow spins up over
+            them, and the bed's grains are placed where they then lie
+            (`bodies.Grains.released`); None: from the start. Seed 002 spins its
+            scour runs up with the grains fixed.
     """
 
     friction: Float[Array, ""] = eqx.field(converter=jnp.asarray)
@@ -279,6 +285,9 @@ class GrainParams(eqx.Module):
     stiffness: Float[Array, ""] = eqx.field(converter=jnp.asarray)
     lift: Float[Array, ""] = eqx.field(converter=jnp.asarray)
     rolling: Float[Array, ""] = eqx.field(converter=jnp.asarray, default=0.0)
+    release_time: Float[Array, ""] | None = eqx.field(
+        default=None, converter=_optional_array
+    )
 
     def __check_init__(self):
         _check_fields(self, "grains.", "", nested=False)

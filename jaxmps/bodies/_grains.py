@@ -267,7 +267,10 @@ class Grains(AbstractBodyModel):
             "stiffness",
             "lift",
             "rolling",
+            "release_time",
         ):
+            if getattr(g, name) is None:
+                continue
             shape = getattr(g, name).shape
             if shape != ():
                 raise ValueError(
@@ -356,7 +359,7 @@ class Grains(AbstractBodyModel):
         reaction = gs.reaction
         if self.reacts:
             reaction = self._reaction(disc, state, load, on_walls, fluid, reach)
-        attached, kind = self._detach(state, x)
+        attached, kind, origin = self._detach(params, state, x)
         grains = dataclasses.replace(
             gs,
             partner=partner,
@@ -366,6 +369,7 @@ class Grains(AbstractBodyModel):
             contact_count=count[-1],
             reaction=reaction,
             attached=attached,
+            origin=origin,
         )
         result = update_result(state.result, overflow, Result.contact_overflow)
         result = update_result(
@@ -398,6 +402,7 @@ class Grains(AbstractBodyModel):
         material = _Material.of(self, params, mass)
         h = params.dt / self.substeps
         weight = reach if self.reacts else None
+        free = self.released(params, state)
 
         def substep(carry, _):
             x, v, spin, shear = carry
@@ -405,8 +410,17 @@ class Grains(AbstractBodyModel):
                 x, v, spin, gs.diameter, partner, shear, walls, material, h, weight
             )
             fluid = (
-                fluid_force(
-                    flow - v, gs.diameter, params.density, params.viscosity, g.lift, up
+                jnp.where(
+                    free,
+                    fluid_force(
+                        flow - v,
+                        gs.diameter,
+                        params.density,
+                        params.viscosity,
+                        g.lift,
+                        up,
+                    ),
+                    0.0,
                 )
                 if self.submerged
                 else jnp.zeros_like(v)
@@ -421,21 +435,37 @@ class Grains(AbstractBodyModel):
         carry = (x, v, gs.spin, shear)
         return jax.lax.scan(substep, carry, None, length=self.substeps)
 
-    def _detach(self, state: State, x):
-        """The grains still attached after the step, and the kinds: a grain of
-        the bed (`bed`) that has left its place is free for good (seed 002
-        §5.5). # Choice: "left" is moved `detach_distance` diameters from its
-        start (the seed gives no criterion)."""
+    def released(self, params: Params, state: State):
+        """Whether the grains are past `GrainParams.release_time` (always
+        without one). Before it they feel no fluid force and settle under their
+        own (submerged) weight while the flow spins up over them, and the bed's
+        grains are placed where they lie (`_detach`): seed 002 spins its scour
+        runs up with the grains fixed."""
+        release = params.grains.release_time
+        return True if release is None else state.time >= release
+
+    def _detach(self, params: Params, state: State, x):
+        """The grains still attached after the step, the kinds and the places
+        the bed's grains are measured from: a grain of the bed (`bed`) that has
+        left its place is free for good (seed 002 §5.5). # Choice: "left" is
+        moved `detach_distance` diameters from its place (the seed gives no
+        criterion), the place where it lay at `GrainParams.release_time` (its
+        start without one), so that a packed bed's settling under its own
+        weight (measured: a hexagonal packing's grains beside a pit's walls
+        sink by half a diameter, having no support on every other row) is not
+        read as erosion."""
         gs, kind = state.grains, state.kind
         if not self.bed:
-            return gs.attached, kind
+            return gs.attached, kind, gs.origin
+        free = self.released(params, state)
+        origin = jnp.where(free, gs.origin, x)
         moved = (
-            jnp.sum((x - gs.origin) ** 2, axis=-1)
+            jnp.sum((x - origin) ** 2, axis=-1)
             > (self.detach_distance * gs.diameter) ** 2
         )
         attached = gs.attached & ~moved
         now = jnp.where(attached, int(Kind.WALL), int(Kind.SEDIMENT))
-        return attached, kind.at[gs.index].set(now.astype(kind.dtype))
+        return attached, kind.at[gs.index].set(now.astype(kind.dtype)), origin
 
     def _beyond(self, disc, params, gs, v):
         """Whether the step was beyond the grains' limits: the sub-steps', the
