@@ -248,6 +248,9 @@ RULES = {
     "scour_depth": _OFFSET,
     "scour_centre": _LENGTH,
     "scour_exposure": _OFFSET,
+    "movable_length": _OFFSET,
+    "movable_start": _OFFSET,
+    "movable_depth": _LENGTH,
     "block_length": _LENGTH,
     "block_gap": _OFFSET,
     "initial_draft": _OFFSET,
@@ -495,13 +498,23 @@ ESCAPE_SHARE = 0.1
 
 
 def case_scene(
-    config: dict, position, domain, kind, *, candidate_capacity=None, capacity=None
+    config: dict,
+    position,
+    domain,
+    kind,
+    *,
+    candidate_capacity=None,
+    capacity=None,
+    crowding: float = 1.0,
 ):
     """The Scene of a built-in case: the discretisation of the `solver` and `scheme`
     settings, the `max_neighbours` / `candidate_capacity` settings
     (`candidate_capacity` here is the scene's own default when the setting is
     None), adaptive or fixed steps by the `dt` setting, and the `escape_limit`
-    setting (default: `ESCAPE_SHARE` of the fluid particles of `kind`)."""
+    setting (default: `ESCAPE_SHARE` of the fluid particles of `kind`).
+    `crowding` scales the default neighbour and candidate margins: how many times
+    the fluid lattice's density may gather in one place (grains hidden from the
+    fluid share its space)."""
     escape = config["escape_limit"]
     if escape is None:
         fluid = int(np.sum(np.asarray(kind) == int(Kind.FLUID)))
@@ -514,6 +527,8 @@ def case_scene(
         capacity=capacity,
         max_neighbours=config["max_neighbours"],
         candidate_capacity=candidate_capacity if setting is None else setting,
+        neighbour_margin=2.0 * crowding,
+        candidate_margin=1.5 * crowding,
         scheme=discretisation(config),
         time_step=time_stepping(config),
         escape_limit=escape,

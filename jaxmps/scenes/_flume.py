@@ -22,6 +22,13 @@ from ._flume_bed import (
     optional,
     stored_area,
 )
+from ._flume_grains import (
+    MOVABLE_BED,
+    add_bed_grains,
+    bed_grains,
+    clear_of,
+    movable_stretch,
+)
 from ._probes import BodiesMoved, FluidCount, WaterLevel
 
 DEFAULTS = {
@@ -61,6 +68,9 @@ DEFAULTS = {
     # The blocks are held still until release_time [s] while the flow spins up
     # round them (seed 002's spin-up with the blocks frozen); None: free at once.
     "release_time": None,
+    # A movable bed of DEM grains (seed 002 Ch. 6-7; `_flume_grains`), feeling
+    # no flow until release_time.
+    **MOVABLE_BED,
     "initial_fill": True,  # start with the bed covered at h_in moving at q/h_in
     # ... and standing at least tail_depth over the bed's end (None: no more),
     # moving at q / depth: a start near the level a tail weir holds.
@@ -83,6 +93,8 @@ _PIECES = (
     "scour_depth",
     "scour_exposure",
     "block_gap",
+    "movable_length",
+    "movable_depth",
 )
 
 
@@ -119,11 +131,21 @@ def flume(**overrides) -> Case:
     weight). With `release_time` they are held still until then while the
     flow spins up round them.
 
+    `movable_length` lays a movable bed (seed 002 Ch. 6-7) from
+    `movable_start` (the apron's end by default): a pit cut `movable_depth`
+    below the bed's highest surface over that stretch, filled with DEM grains
+    of the spacing's diameter in seed 002's packed bed (`grain_density`,
+    `friction`, `restitution`, `stiffness`, ...: `jaxmps.add_grains`), attached
+    to the bed as walls to the water until the flow moves them; they feel no
+    flow until `release_time`, settling under their own weight. Blocks in the
+    stretch rest on them.
+
     Probes: `fluid_count`; `level_upstream`, `level_middle`,
     `level_downstream` (depth over the local bed at 0.25, 0.5 and 0.9 of the
     bed); with blocks, `block{k}_x`, `block{k}_y`, `block{k}_angle` for each
     row k counted from the apron, and `blocks_out`: how many have left their
-    place (moved by more than one block length).
+    place (moved by more than one block length); with a movable bed,
+    `scour_depth` and `scour_length` (`BedLowering`).
     """
     c = resolve("flume", DEFAULTS, overrides)
     if int(c["dim"]) != 2:
@@ -140,50 +162,37 @@ def flume(**overrides) -> Case:
     profile = bed_profile(c, length, -(layers + 1) * l0)
     end = profile.knots[-1, 1]
     level, top = _heights(c, h_in, weir, end, length)
+    stretch = movable_stretch(c, profile, length)
     inflow_pts, inflow_kind, upstream, upstream_kind, bed, bed_kind = _walls(
-        c, profile, rows, max(top, level + 4 * l0), weir, length
+        c, profile, rows, max(top, level + 4 * l0), weir, length, stretch
     )
     blocks, body = _blocks(c, profile, l0)
+    grains = bed_grains(profile, stretch, l0)
     tail = None if c["tail_depth"] is None else end + whole(c["tail_depth"], l0)
-    fluid, speed = _water(c, profile, length, h_in, tail, blocks)
-    position = np.concatenate([fluid, blocks, inflow_pts, upstream, bed])
-    kind = _kinds(len(fluid) + len(blocks), inflow_kind, upstream_kind, bed_kind)
-    n_fluid, first_wall = len(fluid), len(fluid) + len(blocks)
+    fluid, speed = _water(c, profile, length, h_in, tail, (blocks, grains))
+    position = np.concatenate([fluid, blocks, grains, inflow_pts, upstream, bed])
+    n_fluid, n_solid = len(fluid), len(blocks) + len(grains)
+    kind = _kinds(n_fluid + n_solid, inflow_kind, upstream_kind, bed_kind)
+    first_wall = n_fluid + n_solid
     held = [end + level] if weir else []
     held = max(held + ([] if tail is None else [tail]), default=None)
     area = stored_area(profile, length, h_in, held, l0)
     pool = _pool(c, u_in, area, rows, n_fluid)
-    scene = _scene(
-        c,
-        profile,
-        position,
-        kind,
-        len(position) + pool,
-        (top, length, weir),
-        (first_wall, rows, len(inflow_pts)),
-    )
-    params = case_params(
-        c, 2, u_in + math.sqrt(c["gravity"] * (h_in + c["step_height"]))
-    )
-    params = _with_inflow(
-        params, InflowParams(velocity=np.asarray(u_in, params.dt.dtype))
-    )
+    floor = profile.lowest if stretch is None else stretch[2]
+    extent, inflow = (top, length, weir, floor), (first_wall, rows, len(inflow_pts))
+    scene = _scene(c, position, kind, len(position) + pool, extent, inflow)
+    params = _params(c, u_in, h_in)
     inflow_slots = slice(first_wall, first_wall + len(inflow_pts))
     velocity = _velocities(position, n_fluid, speed, inflow_slots, u_in)
     state = make_state(scene, position, kind, velocity=velocity)
     probes = _level_probes(profile, length, l0)
-    scene, params, state, probes = _add_blocks(
-        c, body, n_fluid, (scene, params, state, probes)
+    case = _add_blocks(c, body, n_fluid, (scene, params, state, probes))
+    scene, params, state, probes = add_bed_grains(
+        c, stretch, n_fluid + len(blocks), len(grains), case
     )
-    config = {
-        **c,
-        "inflow_depth": h_in,
-        "bed_length": length,
-        "weir_height": weir,
-        "pool": pool,
-        "apron_end": profile.apron_end,
-        "protection_end": profile.protection_end,
-    }
+    config = dict(c, inflow_depth=h_in, bed_length=length, weir_height=weir, pool=pool)
+    config.update(apron_end=profile.apron_end, protection_end=profile.protection_end)
+    config["movable_stretch"] = stretch
     return Case("flume", scene, params, state, probes, float(c["t_end"]), config)
 
 
@@ -202,18 +211,35 @@ def _kinds(n_moving: int, *walls) -> np.ndarray:
     return np.concatenate([np.full(n_moving, int(Kind.FLUID)), *walls]).astype(np.int32)
 
 
-def _scene(c: dict, profile, position, kind, capacity: int, extent, inflow):
+def _params(c: dict, u_in: float, h_in: float) -> Params:
+    """The flume's Params: its step from the Courant rule of the inflow's speed
+    and the wave speed over the crest and the drop, and the inflow's speed."""
+    params = case_params(
+        c, 2, u_in + math.sqrt(c["gravity"] * (h_in + c["step_height"]))
+    )
+    return _with_inflow(
+        params, InflowParams(velocity=np.asarray(u_in, params.dt.dtype))
+    )
+
+
+def _scene(c: dict, position, kind, capacity: int, extent, inflow):
     """The flume's Scene: a domain from the inflow's dummies to beyond the
-    downstream end and below the lowest bed, the inflow (`inflow`: the index of
-    its first wall particle, its rows, its particle count) and the outflow."""
-    top, length, weir = extent
+    downstream end and below the `lowest` bed (or the movable bed's floor), the
+    inflow (`inflow`: the index of its first wall particle, its rows, its
+    particle count) and the outflow."""
+    top, length, weir, lowest = extent
     first_wall, rows, n_inflow = inflow
     l0, layers = c["spacing"], boundary_layers(c)
-    lower = np.array(
-        [-(layers + 3) * l0, profile.lowest - (layers + 2) * l0 - 0.2 * length]
-    )
+    lower = np.array([-(layers + 3) * l0, lowest - (layers + 2) * l0 - 0.2 * length])
     upper = np.array([length + (layers + 3) * l0, top])
-    scene = case_scene(c, position, (lower, upper), kind, capacity=capacity)
+    # Choice: with a movable bed, grains carried off are hidden from the water
+    # and share its space: a place may hold the fluid's lattice and the packed
+    # bed's 1.25 n0 at once (measured: the default margins overflowed as soon
+    # as light grains were lifted into the flow), hence 1.5 times the margins.
+    crowding = 1.5 if c["movable_length"] else 1.0
+    scene = case_scene(
+        c, position, (lower, upper), kind, capacity=capacity, crowding=crowding
+    )
     # Choice: behind a weir the outflow plane is the weir's downstream face: water
     # that spills over the crest and runs down that face would otherwise fall
     # between the face and a plane further out and leave the domain through its
@@ -246,9 +272,10 @@ def _level_probes(profile, length: float, l0: float) -> tuple:
     )
 
 
-def _walls(c: dict, profile, rows: int, top: float, weir: float, length: float):
+def _walls(c: dict, profile, rows, top: float, weir: float, length: float, pit):
     """The inflow's boundary columns, the head-box wall above them up to `top`,
-    and the bed with the tail weir, each with its kinds."""
+    and the bed with the tail weir and the movable bed's `pit`, each with its
+    kinds."""
     l0 = c["spacing"]
     layers = boundary_layers(c)
     # Inflow boundary: a pressure layer at x = -l0/2 and dummy layers behind it.
@@ -262,7 +289,7 @@ def _walls(c: dict, profile, rows: int, top: float, weir: float, length: float):
     # The bed runs on under the weir: a weir standing on the bed's end would leave
     # a gap under its bottom row through which the bottom fluid row leaks out.
     bed_end = length + (layers * l0 if weir > 0 else 0.0)
-    bed, bed_kind = bed_particles(profile, bed_end, weir, layers, l0)
+    bed, bed_kind = bed_particles(profile, bed_end, weir, layers, l0, pit)
     return inflow, inflow_kind, upstream, upstream_kind, bed, bed_kind
 
 
@@ -271,21 +298,25 @@ def _rounded(c: dict, l0: float) -> dict:
     out = {key: optional(c[key], l0) for key in _PIECES}
     if c["crest_length"] is not None:
         out["crest_length"] = whole(c["crest_length"], l0)
-    if c["scour_centre"] is not None:
-        out["scour_centre"] = whole(c["scour_centre"], l0)
+    for key in ("scour_centre", "movable_start"):
+        if c[key] is not None:
+            out[key] = whole(c[key], l0)
     if c["block_rows"]:
         out["block_length"] = whole(c["block_length"], l0)
         out["block_height"] = whole(c["block_height"], l0)
     return {**c, **out}
 
 
-def _water(c: dict, profile, length: float, h_in: float, tail, blocks):
-    """The initial water (none without `initial_fill`) and its speed: q / depth,
-    but still between the blocks (moving, it would be squeezed into their faces
-    in the first step and throw them out)."""
+def _water(c: dict, profile, length: float, h_in: float, tail, solids):
+    """The initial water (none without `initial_fill`) clear of the `solids`
+    (blocks, grains) and its speed: q / depth, but still between the blocks
+    (moving, it would be squeezed into their faces in the first step and throw
+    them out)."""
     l0 = c["spacing"]
+    blocks, grains = solids
     fluid, depth = fill(profile, length, h_in, l0, tail)
     free = _outside(fluid, blocks, l0) & bool(c["initial_fill"])
+    free &= clear_of(fluid, grains, 0.9 * l0)
     fluid, depth = fluid[free], depth[free]
     between = (fluid[:, 0] > profile.apron_end) & (fluid[:, 0] < profile.protection_end)
     between &= fluid[:, 1] < -c["step_height"]

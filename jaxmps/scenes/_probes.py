@@ -5,6 +5,7 @@ import abc
 import equinox as eqx
 import jax
 import jax.numpy as jnp
+import numpy as np
 from jaxtyping import Array, Float
 
 from .._scene import Scene
@@ -308,6 +309,70 @@ class BodiesMoved(AbstractProbe):
         step = state.rigid.centre - self.start
         squared = sum(step[:, k] ** 2 for k in range(step.shape[-1]))
         return jnp.sum(squared > self.distance**2).astype(step.dtype)
+
+
+class BedLowering(AbstractProbe):
+    """The scour hole in a bed of DEM grains: its deepest lowering below the bed's
+    first surface (`measure` "depth") or its length ("length") [m].
+
+    The bed over [x0, x0 + bins width) is cut into `bins` of `width`; a bin's
+    surface is the top (centre + d/2) of its highest grain in the bed (attached,
+    or resting on at least two partners: not one carried over it), or the pit's
+    `floor` where it has none. The first surface is the same of every grain's
+    place (`GrainState.origin`: where it lay at `GrainParams.release_time`, so
+    that the bed's settling before it is not read as scour). The hole is the
+    run of bins lowered by more than one `diameter` round the deepest one."""
+
+    name: str
+    bins: int
+    measure: str
+    x0: float
+    width: float
+    floor: float
+    diameter: float
+
+    def __check_init__(self):
+        if self.measure not in ("depth", "length"):
+            raise ValueError('BedLowering.measure must be "depth" or "length".')
+
+    @staticmethod
+    def surface_of(position, in_bed, bins: int, *, x0, width, floor, diameter, xp=np):
+        """Each bin's bed surface from grain centres `position` (m, d) and which
+        of them lie in the bed (`in_bed`)."""
+        b = xp.floor((position[:, 0] - x0) / width).astype(xp.int32)
+        inside = in_bed & (b >= 0) & (b < bins)
+        top = xp.where(inside, position[:, -1] + 0.5 * diameter, floor)
+        b = xp.clip(b, 0, bins - 1)
+        if xp is np:
+            surface = np.full(bins, floor, dtype=float)
+            np.maximum.at(surface, b, top)
+            return surface
+        return jnp.full(bins, floor, top.dtype).at[b].max(top)
+
+    def __call__(self, scene: Scene, state: State):
+        del scene
+        gs = state.grains
+        in_bed = gs.attached | (gs.contact_count >= 2)
+        bins = self.bins
+        where = {
+            "x0": self.x0,
+            "width": self.width,
+            "floor": self.floor,
+            "diameter": self.diameter,
+            "xp": jnp,
+        }
+        surface = self.surface_of(state.position[gs.index], in_bed, bins, **where)
+        first = self.surface_of(gs.origin, jnp.ones_like(in_bed), bins, **where)
+        lowered = first - surface
+        deepest = jnp.argmax(lowered)
+        depth = lowered[deepest]
+        if self.measure == "depth":
+            return jnp.maximum(depth, 0.0)
+        k = jnp.arange(bins)
+        shallow = lowered <= self.diameter
+        start = jnp.max(jnp.where(shallow & (k < deepest), k, -1)) + 1
+        end = jnp.min(jnp.where(shallow & (k > deepest), k, bins))
+        return jnp.where(depth > self.diameter, (end - start) * self.width, 0.0)
 
 
 def _walls_in_box(state: State, lower, upper):
