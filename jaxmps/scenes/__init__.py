@@ -41,6 +41,7 @@ from ._hydrostatic import hydrostatic as _hydrostatic
 from ._hydrostatic import hydrostatic_pressure as hydrostatic_pressure
 from ._porous import accepts_porous
 from ._probes import AbstractProbe as AbstractProbe
+from ._probes import BedLowering as BedLowering
 from ._probes import BodiesMoved as BodiesMoved
 from ._probes import BodyValue as BodyValue
 from ._probes import DisplacedDepth as DisplacedDepth
@@ -63,6 +64,9 @@ from ._probes import WallForce as WallForce
 from ._probes import WallPressure as WallPressure
 from ._probes import WaterLevel as WaterLevel
 from ._probes import observe_probes as observe_probes
+from ._scour import LOCAL_SCOUR as _LOCAL_SCOUR
+from ._scour import MEASURED_SCOUR as MEASURED_SCOUR
+from ._scour import local_scour as _local_scour
 from ._sloshing import SLOSHING_TANK as _SLOSHING_TANK
 from ._sloshing import STANDING_WAVE as _STANDING_WAVE
 from ._sloshing import natural_frequency as natural_frequency
@@ -96,6 +100,7 @@ grain_drop = accepts_porous(_grain_drop)
 grain_settling = accepts_porous(_grain_settling)
 granular_collapse = accepts_porous(_granular_collapse)
 hydrostatic = accepts_porous(_hydrostatic)
+local_scour = accepts_porous(_local_scour)
 sloshing_tank = accepts_porous(_sloshing_tank)
 standing_wave = accepts_porous(_standing_wave)
 tsunami_quay = accepts_porous(_tsunami_quay)
@@ -118,6 +123,7 @@ _REGISTRY = {
     "grain_settling": (grain_settling, _GRAIN_SETTLING),
     "granular_collapse": (granular_collapse, _GRANULAR_COLLAPSE),
     "hydrostatic": (hydrostatic, _HYDROSTATIC),
+    "local_scour": (local_scour, _LOCAL_SCOUR),
     "sloshing_tank": (sloshing_tank, _SLOSHING_TANK),
     "standing_wave": (standing_wave, _STANDING_WAVE),
     "tsunami_quay": (tsunami_quay, _TSUNAMI_QUAY),
