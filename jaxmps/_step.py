@@ -19,7 +19,7 @@
     correct      pressure force (body, contact parts),      fluid.pressure_force,
                  u' = -dt/rho grad P                        fluid.accelerate
     stabilise    dynamic stabilisation of u'                Scene.stabiliser
-    outflow      return outflowing fluid to the pool        fluid.apply_outflow
+    outflow      retire outflowing fluid (and grains)       fluid.apply_outflow
     <name>       each body model advances its bodies        <model>.advance
     result       stability checks, first failure wins       _record
 

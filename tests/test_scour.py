@@ -208,3 +208,28 @@ def test_an_unknown_stiffness_rule_is_refused(case):
             density=2650.0,
             release_time=-0.5,
         )
+
+
+def test_grains_carried_out_leave_by_the_outflow_and_keep_their_slots(case):
+    """A grain past the outflow plane (over the free overfall) is retired, not
+    lost out of the domain, and the inflow, feeding from the pool's lowest
+    slots first, never takes its slot (which comes before the pool's)."""
+    gs = case.state.grains
+    slot = int(gs.index[0])
+    at = jnp.asarray([case.scene.outflow.position + 0.002, -0.03])
+    grains = dataclasses.replace(
+        gs, attached=gs.attached.at[0].set(False), origin=gs.origin.at[0].set(at)
+    )
+    state = dataclasses.replace(
+        case.state,
+        position=case.state.position.at[slot].set(at),
+        kind=case.state.kind.at[slot].set(int(Kind.SEDIMENT)),
+        grains=grains,
+    )
+    out = jaxmps.simulate(case.scene, case.params, state, times=[0.05])
+    assert out.result == jaxmps.Result.successful
+    assert not bool(out.state.active[slot])
+    assert int(out.state.kind[slot]) == int(Kind.SEDIMENT)
+    # The inflow fed meanwhile (the speed 0.49 m/s moves it 5 spacings).
+    pool = np.arange(case.scene.capacity) >= int(np.asarray(state.active).sum())
+    assert np.asarray(out.state.active)[pool].sum() > 0

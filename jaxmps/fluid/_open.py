@@ -55,7 +55,7 @@ class Inflow(eqx.Module):
 class Outflow(eqx.Module):
     """Fluid particles beyond `position` along `direction` x e_axis leave the
     simulation: they are deactivated (returned to the pool) and parked at the domain
-    origin."""
+    origin. DEM grains beyond it leave too (`apply_outflow`)."""
 
     position: float
     axis: int = 0
@@ -161,7 +161,10 @@ def _spawn(inflow: Inflow, depth, l0: float, velocity, spawn, state: State):
     else:
         bottom = jnp.min(at_layer[:, up]) - 0.5 * l0
         fed = at_layer[:, up] - bottom < depth
-    free = jnp.nonzero(~state.active, size=layer.shape[0], fill_value=n)[0]
+    # The pool: inactive slots that are not grains' (a grain carried out keeps
+    # its slot in the grains' index).
+    spare = ~state.active & (state.kind != int(Kind.SEDIMENT))
+    free = jnp.nonzero(spare, size=layer.shape[0], fill_value=n)[0]
     slot = free[jnp.clip(jnp.cumsum(fed) - 1, 0, layer.shape[0] - 1)]
     short = spawn & jnp.any(fed & (slot == n))
     target = jnp.where(spawn & fed, slot, n)
@@ -213,13 +216,13 @@ def _withdraw(inflow: Inflow, grid: Grid, l0: float, withdraw, state: State):
 
 
 def apply_outflow(outflow: Outflow, grid: Grid, state: State) -> State:
-    """Deactivate fluid particles past the outflow plane."""
-    gone = (
-        state.active
-        & (state.kind == int(Kind.FLUID))
-        & (outflow.direction * (state.position[:, outflow.axis] - outflow.position) > 0)
-    )
-    return _retire(gone, grid, state)
+    """Deactivate fluid particles and DEM grains past the outflow plane (sediment
+    carried out of a flume leaves it, as over seed 002's free overfall). A
+    grain's slot stays a grain's (`Kind.SEDIMENT`, never refilled by an inflow),
+    parked and inactive."""
+    past = outflow.direction * (state.position[:, outflow.axis] - outflow.position)
+    carried = (state.kind == int(Kind.FLUID)) | (state.kind == int(Kind.SEDIMENT))
+    return _retire(state.active & carried & (past > 0), grid, state)
 
 
 def _retire(gone, grid: Grid, state: State) -> State:
