@@ -177,6 +177,8 @@ def flume(**overrides) -> Case:
     held = [end + level] if weir else []
     held = max(held + ([] if tail is None else [tail]), default=None)
     area = stored_area(profile, length, h_in, held, l0)
+    if stretch is not None:  # a movable bed may be scoured down to its floor
+        area += (stretch[1] - stretch[0]) * c["movable_depth"]
     pool = _pool(c, u_in, area, rows, n_fluid)
     floor = profile.lowest if stretch is None else stretch[2]
     extent, inflow = (top, length, weir, floor), (first_wall, rows, len(inflow_pts))
@@ -415,8 +417,9 @@ def _weir(length: float, weir: float, layers: int, l0: float):
 def _pool(c: dict, u_in: float, area: float, rows: int, n_fluid: int):
     """Inactive slots for the inflow: the `pool` setting, or enough for what enters
     over t_end on a dry bed, for 1.5 x the water `area` the bed holds at the
-    inflow depth or up to the level a tail weir holds, or for the inflow depth
-    (the flow deepens as it develops)."""
+    inflow depth or up to the level a tail weir holds (and a movable bed's pit,
+    which a scour may empty), or for the inflow depth (the flow deepens as it
+    develops)."""
     if c["pool"] is not None:
         return int(c["pool"])
     l0 = c["spacing"]
