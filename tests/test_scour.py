@@ -56,6 +56,11 @@ def test_the_packed_bed_fills_its_pit_clear_of_walls_and_water(case):
         np.linalg.norm(grains[:, None] - position[fluid][None], axis=-1), axis=1
     )
     assert near.min() >= 0.9 * l0 * (1 - 1e-9)
+    # The inflow's pool holds 1.5 times the water that fills the pit, should the
+    # flow scour it empty, more than over a fixed bed.
+    fixed = jaxmps.scenes.local_scour(**{**COARSE, "movable_length": 0.0})
+    extra = case.config["pool"] - fixed.config["pool"]
+    assert extra >= 1.5 * (x1 - x0) * 0.04 / l0**2 - 2
     assert {p.name for p in case.probes} >= {"scour_depth", "scour_length"}
     assert "local_scour" in jaxmps.scenes.available()
 

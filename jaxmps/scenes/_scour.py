@@ -92,5 +92,11 @@ def local_scour(**overrides) -> Case:
         case.state,
         case.probes,
         case.t_end,
-        {**case.config, "stiffness": float(case.params.grains.stiffness)},
+        {**case.config, "stiffness": _stiffness(case)},
     )
+
+
+def _stiffness(case: Case) -> float | None:
+    """The grains' stiffness the case took (None without a movable bed)."""
+    grains = case.params.grains
+    return None if grains is None else float(grains.stiffness)
