@@ -1,15 +1,11 @@
 """Local scour below a groundsill: seed 002's E-MPS-DEM simulation of Case 2-2
 (Ch. 6), a jet over a drop digging a hole in a bed of DEM grains."""
 
-import dataclasses
-
-import equinox as eqx
-import jax.numpy as jnp
-
 from ._case import Case
 from ._common import resolve
 from ._flume import DEFAULTS as _FLUME
 from ._flume import flume
+from ._washout import fed_depth
 
 # Seed 002's Case 2-2 hole after 10 min (experiment) and its own E-MPS-DEM
 # simulation at 50 s (d = l0 = 1 mm): length L and deepest point Z_d [m].
@@ -76,15 +72,7 @@ def local_scour(**overrides) -> Case:
     if c["inflow_depth"] is None:
         c["inflow_depth"] = (c["discharge"] ** 2 / c["gravity"]) ** (1 / 3)
     case = flume(**c)
-    inflow = case.params.inflow
-    params = eqx.tree_at(
-        lambda p: p.inflow,
-        case.params,
-        dataclasses.replace(
-            inflow,
-            depth=jnp.asarray(case.config["inflow_depth"], inflow.velocity.dtype),
-        ),
-    )
+    params = fed_depth(case)
     return Case(
         "local_scour",
         case.scene,

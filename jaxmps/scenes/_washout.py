@@ -6,6 +6,7 @@ import dataclasses
 import equinox as eqx
 import jax.numpy as jnp
 
+from .._params import Params
 from ._case import Case
 from ._common import resolve, whole
 from ._flume import DEFAULTS as _FLUME
@@ -115,18 +116,7 @@ def block_washout(**overrides) -> Case:
         protection = int(c["block_rows"]) * (length + gap)
         c["reach_length"] = protection + c["scour_length"]
     case = flume(**c)
-    # The depth fed, given (the layer's full height), so that a sweep can feed
-    # less: the failure matrix's discharges as one batch on the case built for
-    # the largest.
-    inflow = case.params.inflow
-    params = eqx.tree_at(
-        lambda p: p.inflow,
-        case.params,
-        dataclasses.replace(
-            inflow,
-            depth=jnp.asarray(case.config["inflow_depth"], inflow.velocity.dtype),
-        ),
-    )
+    params = fed_depth(case)
     return Case(
         "block_washout",
         case.scene,
@@ -135,6 +125,17 @@ def block_washout(**overrides) -> Case:
         case.probes,
         case.t_end,
         {**case.config, "block_density": c["block_density"], "hole": hole},
+    )
+
+
+def fed_depth(case: Case) -> Params:
+    """The case's Params with `inflow.depth` the depth its inflow feeds (the
+    layer's full height), so that a sweep can feed less: a batch of discharges
+    (`critical_feed`) as one run on the case built for the largest."""
+    inflow = case.params.inflow
+    depth = jnp.asarray(case.config["inflow_depth"], inflow.velocity.dtype)
+    return eqx.tree_at(
+        lambda p: p.inflow, case.params, dataclasses.replace(inflow, depth=depth)
     )
 
 
