@@ -14,6 +14,17 @@ Seed (2.5 mm): V4: Case 3-2 (Delta H = 2 cm) no block moves; Case 3-3 (4 cm) the
 last row washes out, then a cascade (experiment: rows 1-4 within 8 s). V7: for
 q = 0.006 / 0.009 / 0.012 m^2/s, Delta H = 2 cm stable, 3 and 4 cm fail.
 
+With `--movable`, seed 002's moving-bed runs (§8.3 Method B, its Tables
+8.3-8.4, at its l0 = 5 mm): no hole cut; the blocks (2.0 x 1.5 cm, no gaps,
+mass-matched) rest on a bed of DEM grains 7 cm deep that runs from the apron's
+end 10 cm past the blocks and on into the transition (`--movable-length`); the
+grains of the seed's similarity scaling, R = 1.65 x 0.76 mm / d (0.25 at 5
+mm), with its stiffness rule at its Delta t = 5e-5 s (k_n = 323 N/m at 5 mm);
+grains and blocks feel no flow until the release. The seed's Fig. 8.6 at 60 s:
+Delta H = 4 cm fails for every q (more blocks out as q grows), 0 and 2 cm do
+not; where the sediment lay in its figure 8.5 is lost from the text, so the
+bed's extent here is ours.
+
 Each Delta H is one vmapped batch over the discharges (`jaxmps.sweep` over
 `inflow.velocity` and `inflow.depth`, on the case built for the largest q, whose
 initial water and inflow boundary the others share; the spin-up evens that out).
@@ -38,6 +49,8 @@ import jaxmps
 jax.config.update("jax_enable_x64", True)
 
 SEED = {0.02: "stable", 0.03: "fail", 0.04: "fail"}  # §8.2, every q
+# §8.3 (Fig. 8.6, 60 s), every q
+SEED_MOVABLE = {0.0: "stable", 0.02: "stable", 0.04: "fail"}
 
 
 def blocks(spacing: float) -> dict:
@@ -46,6 +59,32 @@ def blocks(spacing: float) -> dict:
     if spacing <= 0.0025 + 1e-12:
         return {}
     return dict(block_length=0.02, block_height=0.015, block_gap=0.0)
+
+
+SEED_STEP = 5e-5  # s, seed 002's Delta t for its moving-bed runs (Table 8.3)
+
+
+def movable_bed(args) -> dict:
+    """The moving-bed settings (`--movable`): no hole, the blocks on grains of
+    the seed's scaling (R = 1.65 x 0.76 mm / d) and stiffness (its rule at its
+    Delta t, `bodies.rule_stiffness` of a grain's submerged mass)."""
+    if not args.movable:
+        return {}
+    rows, size = 16, blocks(args.spacing)
+    extent = rows * (size.get("block_length", 0.0175) + size.get("block_gap", 0.0025))
+    relative = 1.65 * 0.00076 / args.spacing
+    mass = 1000.0 * relative * jaxmps.bodies.sphere_volume(args.spacing)
+    return dict(
+        scour_length=0.0,
+        scour_depth=0.0,
+        scour_exposure=0.0,
+        reach_length=extent + 0.1,
+        movable_length=extent + 0.1 + args.movable_length,
+        movable_depth=0.07,
+        grain_density=1000.0 * (1.0 + relative),
+        stiffness=float(jaxmps.bodies.rule_stiffness(mass, SEED_STEP)),
+        rolling=getattr(args, "rolling", 0.0),
+    )
 
 
 def displacements(case, saved) -> np.ndarray:
@@ -117,6 +156,7 @@ def run_lowering(args, lowering: float) -> list[dict]:
         release_time=args.release,
         t_end=args.release + args.main,
         **blocks(args.spacing),
+        **movable_bed(args),
     )
     times = np.round(
         np.arange(1, round((args.release + args.main) / args.every) + 1) * args.every, 9
@@ -147,7 +187,7 @@ def run_lowering(args, lowering: float) -> list[dict]:
                 blocks_out_at_classify=int(round(float(at_classify))),
                 blocks_out_end=int(round(float(gone[-1]))),
                 verdict="fail" if at_classify > 0.5 else "stable",
-                seed=SEED.get(round(lowering, 3)),
+                seed=(SEED_MOVABLE if args.movable else SEED).get(round(lowering, 3)),
                 departures=departures(after, moved[m], length),
                 largest_move_mm=round(1e3 * float(moved[m].max()), 3),
                 last_row_move_mm=[round(1e3 * float(v), 3) for v in moved[m][:, -1]],
@@ -175,15 +215,35 @@ def run_lowering(args, lowering: float) -> list[dict]:
     return rows
 
 
+def _bed_line(args) -> list[str]:
+    """The movable bed's settings, as a paragraph (none for the fixed bed)."""
+    if not args.movable:
+        return []
+    bed = movable_bed(args)
+    return [
+        f"Grains d = l0, {bed['grain_density']:.1f} kg/m^3, k_n "
+        f"{bed['stiffness']:.0f} N/m (seed 002's rule at its dt {SEED_STEP:g} s), "
+        f"mu_r {bed['rolling']:g}; the bed {bed['movable_length']:.2f} m long from "
+        f"the apron's end, {100 * bed['movable_depth']:g} cm deep; no hole cut.",
+        "",
+    ]
+
+
 def markdown(args, rows, info) -> str:
     lines = [
-        f"# Fixed-bed washout (seed 002 Ch. 5, §8.2): l0 = {args.spacing * 1e3:g} mm",
+        (
+            "# Washout on a movable bed (seed 002 §8.3, Method B)"
+            if args.movable
+            else "# Fixed-bed washout (seed 002 Ch. 5, §8.2)"
+        )
+        + f": l0 = {args.spacing * 1e3:g} mm",
         "",
         f"Spin-up {args.release:g} s with the blocks held, then {args.main:g} s free; "
         f"classified {min(args.classify, args.main):g} s after the release (fail: a "
         "block has left its place by more than its length). "
         f"Host: {info.get('cpu_model') or '?'}, float64.",
         "",
+        *_bed_line(args),
         "| q [m^2/s] | Delta H [cm] | hole L / Z_d / Z_b [cm] | verdict (seed) | "
         "rows out at classify / end | rows' departures [s after release], row 1 "
         "= last | largest move [mm] | wall [s] (members) |",
@@ -193,6 +253,8 @@ def markdown(args, rows, info) -> str:
         hole = " / ".join(f"{100 * v:.2f}" for v in r["hole"][:2]) + (
             f" / {100 * r['exposure']:.2f}"
         )
+        if args.movable:
+            hole = "none cut (movable bed)"
         left = [d for d in r["departures"] if d is not None]
         lines.append(
             f"| {r['discharge']:g} | {100 * r['bed_lowering']:g} | {hole} | "
@@ -232,6 +294,21 @@ def main() -> None:
     parser.add_argument("--every", type=float, default=0.1)
     parser.add_argument("--lowerings", type=float, nargs="+", default=[0.02, 0.04])
     parser.add_argument("--discharges", type=float, nargs="+", default=[0.006])
+    parser.add_argument(
+        "--movable", action="store_true", help="blocks on DEM grains (Method B)"
+    )
+    parser.add_argument(
+        "--movable-length",
+        type=float,
+        default=0.2,
+        help="the grains' reach past the blocks' 10 cm of flat bed [m]",
+    )
+    parser.add_argument(
+        "--rolling",
+        type=float,
+        default=0.0,
+        help="the grains' rolling resistance mu_r with --movable (the seed: 0)",
+    )
     parser.add_argument("--tag", default=None)
     parser.add_argument(
         "--serial", action="store_true", help="one run per discharge (faster on CPU)"
@@ -240,7 +317,9 @@ def main() -> None:
         "--replot", action="store_true", help="redraw the saved results' plot"
     )
     args = parser.parse_args()
-    tag = args.tag or f"{args.spacing * 1e3:g}mm"
+    tag = args.tag or f"{args.spacing * 1e3:g}mm".replace(".", "p")
+    tag += "_movable" * args.movable
+    tag += f"_rolling{args.rolling:g}".replace(".", "p") * (args.rolling > 0)
     stem = HERE / "results" / f"block_washout_{tag}_cpu"
     if args.replot:
         plot(
