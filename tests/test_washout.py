@@ -209,3 +209,91 @@ def test_a_stored_config_rebuilds_the_case():
     again = jaxmps.scenes.build("block_washout", **settings)
     np.testing.assert_array_equal(again.state.position, case.state.position)
     np.testing.assert_array_equal(again.params.rigid.release_time, [0.5] * 3)
+
+
+# Two of the seed's §8.3 blocks (2 x 1 cm at 5 mm) on a short movable bed of its
+# Method B grains (5 mm, 1250 kg/m^3 after the similarity scaling, k_n = 323 N/m).
+ON_GRAINS = dict(
+    spacing=0.005,
+    apron_length=0.1,
+    block_rows=2,
+    block_length=0.02,
+    block_height=0.01,
+    block_gap=0.0,
+    scour_length=0.0,
+    scour_depth=0.0,
+    scour_exposure=0.0,
+    reach_length=0.04,
+    transition_length=0.05,
+    movable_length=0.1,
+    movable_depth=0.03,
+    bed_lowering=0.01,
+    bed_length=0.3,
+    grain_density=1250.0,
+    stiffness=323.0,
+)
+
+
+@pytest.fixture(scope="module")
+def on_grains():
+    return jaxmps.scenes.block_washout(**ON_GRAINS, release_time=0.05, t_end=0.15)
+
+
+def test_blocks_over_a_movable_bed_rest_on_its_grains(on_grains):
+    """The pit is deepened by whole spacings until a row of the packed bed ends
+    within 0.134 l0 under the blocks' recess, and the blocks are lowered by the
+    rest: no gap under them for the bed to settle into, and no grain inside a
+    block or cut by the last block's downstream face."""
+    case, l0 = on_grains, ON_GRAINS["spacing"]
+    x0, x1, floor = case.config["movable_stretch"]
+    depth = -0.02 - floor
+    assert depth >= ON_GRAINS["movable_depth"] - 1e-12
+    assert depth <= ON_GRAINS["movable_depth"] + 6 * l0 + 1e-12
+    assert round(floor / l0, 9) == round(floor / l0)  # on the lattice
+    position = np.asarray(case.state.position)
+    grains = position[np.asarray(case.state.grains.index)]
+    body = np.asarray(case.state.rigid.body)
+    member = np.asarray(case.state.kind) == int(jaxmps.Kind.RIGID)
+    for b in range(ON_GRAINS["block_rows"]):
+        block = position[member & (body == b)]
+        distance = np.linalg.norm(block[:, None] - grains[None], axis=-1)
+        assert distance.min() >= l0 * (1 - 1e-9)
+        below = np.abs(grains[:, 0] - block[:, 0].mean()) < 0.5 * 0.02
+        gap = (block[:, 1].min() - 0.5 * l0) - (grains[below, 1].max() + 0.5 * l0)
+        assert 0.0 <= gap <= 1e-9 * l0  # resting, not hanging
+        sink = -0.02 - 0.01 - (block[:, 1].min() - 0.5 * l0)
+        assert 0.0 <= sink < 0.134 * l0
+    # Each grain lies wholly under the bed beside the blocks (the reach at the
+    # apron's level) or under the blocks.
+    end = case.config["protection_end"]
+    beside = (grains[:, 0] + 0.5 * l0 > end + 1e-9) & (grains[:, 0] < x0 + 0.15)
+    assert np.all(grains[beside, 1] + 0.5 * l0 <= -0.02 + 1e-9)
+    straddling = np.abs(grains[:, 0] - end) < 0.5 * l0 - 1e-9
+    assert np.all(grains[straddling, 1] + 0.5 * l0 <= -0.03 + 1e-9)
+
+
+def test_blocks_released_on_grains_stay_where_they_rest(on_grains):
+    """Released onto the packed bed 0.05 s into the flow, each block stays within
+    0.25 l0 and 0.01 rad over the next 0.1 s. Measured: 0.95 mm (the last row,
+    sliding against its downstream grains), 0.05 mm and 3e-4 rad; before the
+    bed was laid flush and the grains' contact with bodies went by distance,
+    the blocks left at 0.5-1.1 m/s, spinning (a grain settling into the gap at
+    the last block's foot, read as a wall plane 0.6 l0 away)."""
+    case, l0 = on_grains, ON_GRAINS["spacing"]
+    times = np.round(np.arange(1, 16) * 0.01, 6)
+    out = jaxmps.simulate(
+        case.scene,
+        case.params,
+        case.state,
+        times=times,
+        observe=jaxmps.scenes.observe_probes(case.probes),
+    )
+    centre = np.asarray(case.state.rigid.centre)
+    for b in range(ON_GRAINS["block_rows"]):
+        x = np.asarray(out.saved[f"block{b}_x"]) - centre[b, 0]
+        y = np.asarray(out.saved[f"block{b}_y"]) - centre[b, 1]
+        angle = np.asarray(out.saved[f"block{b}_angle"])
+        held = times < 0.05 - 1e-9
+        assert np.all(x[held] == 0.0) and np.all(y[held] == 0.0)
+        assert np.max(np.hypot(x, y)) < 0.25 * l0
+        assert np.max(np.abs(angle)) < 0.01

@@ -28,7 +28,7 @@ from ..operators import Discretisation
 from . import rotation as rot
 from ._base import AbstractBodyModel
 from ._friction import Contact, Coulomb, SubmergedWeight
-from ._rigid import _contact_magnitude, _outward, _wall_surface
+from ._rigid import _contact_magnitude, _outward, _wall_surface, round_partners
 
 PairVectors = tuple[Float[Array, "m k"], ...]
 
@@ -451,7 +451,12 @@ class ElasticBodies(AbstractBodyModel):
             & (rows.distance < self.contact_distance * disc.spacing)
         )
         normal, gap, v_wall = _wall_surface(
-            close, rows, outward, state.velocity, disc.spacing
+            close,
+            rows,
+            outward,
+            state.velocity,
+            disc.spacing,
+            round_partners(state, rows),
         )
         return normal, gap, v_wall, jnp.any(close, axis=1)
 

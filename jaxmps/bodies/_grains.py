@@ -78,7 +78,9 @@ class Grains(AbstractBodyModel):
     The grains act back (`reacts`) through `Coupling.force`, one step later: the
     mean over the step's sub-steps of their contact forces on body particles
     (`on_bodies`: Newton's third law slot by slot, so blocks rest on grains and
-    are rubbed by them), and, with `on_fluid`, minus their drag and lift, shared
+    are rubbed by them; but a grain still attached to the bed is a wall to the
+    bodies, which their own wall contact keeps off it, and feels them without
+    pushing back), and, with `on_fluid`, minus their drag and lift, shared
     among the fluid neighbours of each grain by the w_s weights of its u_f. A
     grain stands for a sphere in 3-D; in 2-D (a sheet of unit depth) for a row of
     spheres of its diameter d along the third axis, so that its force per unit
@@ -401,7 +403,13 @@ class Grains(AbstractBodyModel):
         inertia = 0.1 * mass * gs.diameter**2
         material = _Material.of(self, params, mass)
         h = params.dt / self.substeps
-        weight = reach if self.reacts else None
+        weight = None
+        if self.reacts:
+            # A grain in the bed is a wall to the bodies (their own wall contact
+            # pushes them off it), so it pushes them no further; it meets them
+            # as DEM partners all the same, so that settling under its weight
+            # it does not sink into a block resting beside it.
+            weight = jnp.where(gs.attached, 0.0, reach) if self.bed else reach
         free = self.released(params, state)
 
         def substep(carry, _):
@@ -508,13 +516,6 @@ class Grains(AbstractBodyModel):
         partner = found.index[:m]
         overflow = (jnp.max(found.count[:m]) > k) | found.cell_overflow
         total = x_dem.shape[0]
-        if self.bed and self.on_bodies:
-            # A grain in the bed is a wall to the bodies (their own wall contact),
-            # not a DEM partner.
-            body = is_kind(state.kind[gs.walls], (Kind.RIGID, Kind.ELASTIC))
-            slot = jnp.clip(partner - m, 0, max(total - m - 1, 0))
-            on_body = (partner >= m) & (partner < total) & take_rows(body, slot)
-            partner = jnp.where(gs.attached[:, None] & on_body, total, partner)
         # The carried spring of each new slot: the old slot with the same partner.
         same = (partner[:, :, None] == gs.partner[:, None, :]) & (
             partner[:, :, None] < total

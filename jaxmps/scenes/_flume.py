@@ -26,6 +26,7 @@ from ._flume_grains import (
     MOVABLE_BED,
     add_bed_grains,
     bed_grains,
+    block_sink,
     clear_of,
     movable_stretch,
 )
@@ -166,7 +167,7 @@ def flume(**overrides) -> Case:
     inflow_pts, inflow_kind, upstream, upstream_kind, bed, bed_kind = _walls(
         c, profile, rows, max(top, level + 4 * l0), weir, length, stretch
     )
-    blocks, body = _blocks(c, profile, l0)
+    blocks, body = _blocks(c, profile, l0, block_sink(c, profile, stretch))
     grains = bed_grains(profile, stretch, l0)
     tail = None if c["tail_depth"] is None else end + whole(c["tail_depth"], l0)
     fluid, speed = _water(c, profile, length, h_in, tail, (blocks, grains))
@@ -334,13 +335,14 @@ def _outside(points: np.ndarray, solids: np.ndarray, l0: float) -> np.ndarray:
     return np.array([tuple(p) not in taken for p in cells], bool)
 
 
-def _blocks(c: dict, profile, l0: float):
-    """The blocks' lattice points and each one's row (from the apron)."""
+def _blocks(c: dict, profile, l0: float, sink: float = 0.0):
+    """The blocks' lattice points, lowered by `sink` (onto a packed bed, below
+    0.134 l0), and each one's row (from the apron)."""
     count = int(c["block_rows"])
     if not count:
         return np.zeros((0, 2)), np.zeros(0, int)
     a, h, gap = c["block_length"], c["block_height"], c["block_gap"]
-    top = -c["step_height"]
+    top = -c["step_height"] - sink
     blocks = [
         geometry.block(
             [profile.apron_end + gap + k * (a + gap), top - h],

@@ -36,7 +36,11 @@ def movable_stretch(c: dict, profile, length: float):
     """The movable bed's (x0, x1, floor) [m] (None without one): the stretch from
     `movable_start` (the apron's end by default) over `movable_length`, and the
     floor of its pit `movable_depth` below the highest bed over it (ValueError
-    naming the settings where it does not fit on the bed)."""
+    naming the settings where it does not fit on the bed). Where the blocks'
+    recess lies over it, the floor goes down by up to six spacings more, to
+    where a row of the packed bed ends flush with the recess's floor within
+    0.134 l0 (`block_sink` lowers the blocks by the rest): the blocks rest on the
+    grains, with no gap under them for the bed to settle into."""
     if not c["movable_length"]:
         return None
     l0 = c["spacing"]
@@ -49,8 +53,7 @@ def movable_stretch(c: dict, profile, length: float):
             f"lie below the crest (x >= crest_length={crest:g} m) and end at least "
             f"one spacing before the bed's end (bed_length={length:g} m)."
         )
-    x = np.linspace(x0, x1, 64)
-    surface = profile.height(x)
+    surface = _surface_over(profile, x0, x1)
     floor = float(surface.max()) - c["movable_depth"]
     if floor > float(surface.min()) - 2 * l0 + 1e-9:
         raise ValueError(
@@ -58,7 +61,56 @@ def movable_stretch(c: dict, profile, length: float):
             f"rows where the bed over [{x0:g}, {x1:g}] m is lowest (it falls by "
             f"{float(surface.max() - surface.min()):g} m); deepen movable_depth."
         )
+    recess = _recess(c, profile, x0, x1)
+    if recess is not None:
+        floor = min(
+            (floor - j * l0 for j in range(_FLUSH_SPACINGS + 1)),
+            key=lambda f: _mismatch(recess, f, l0),
+        )
     return x0, x1, floor
+
+
+def _surface_over(profile, x0: float, x1: float) -> np.ndarray:
+    """The bed's heights over [x0, x1] at 64 points and at its knots there (its
+    highest and lowest points, which the 64 may miss)."""
+    knots = profile.knots[:, 0]
+    x = np.concatenate([np.linspace(x0, x1, 64), knots[(knots > x0) & (knots < x1)]])
+    return profile.height(x)
+
+
+# A packed bed's rows rise by sqrt(3)/2 d and the lattice by l0 = d: lowering the
+# floor by one spacing moves the rows' tops by (1 - sqrt(3)/2) l0 = 0.134 l0
+# against the recess, so within 6 spacings one ends within 0.134 l0 below it.
+_FLUSH_SPACINGS = 6
+
+
+def _recess(c: dict, profile, x0: float, x1: float) -> float | None:
+    """The floor level of the blocks' recess where it lies over the movable bed
+    [x0, x1] (the blocks then rest on grains), else None."""
+    if not c["block_rows"]:
+        return None
+    if x0 >= profile.protection_end - 1e-9 or x1 <= profile.apron_end + 1e-9:
+        return None
+    return float(profile.height(0.5 * (profile.apron_end + profile.protection_end)))
+
+
+def _mismatch(level: float, floor: float, l0: float) -> float:
+    """How far below `level` the top of the highest row of a packed bed of
+    diameter l0 laid on `floor` ends (each row wholly below `level`)."""
+    rise = np.sqrt(3.0) / 2.0 * l0
+    rows = np.floor((level - floor - l0) / rise + 1e-9)
+    return float(level - (floor + l0 + rows * rise))
+
+
+def block_sink(c: dict, profile, stretch) -> float:
+    """How far the blocks are lowered into their recess [m] so that they rest on
+    the packed bed under them (0 without one): the rows' mismatch, below 0.134
+    l0 (`movable_stretch` chooses the floor for it)."""
+    if stretch is None:
+        return 0.0
+    x0, x1, floor = stretch
+    recess = _recess(c, profile, x0, x1)
+    return 0.0 if recess is None else _mismatch(recess, floor, c["spacing"])
 
 
 def bed_grains(profile, stretch, l0: float) -> np.ndarray:
@@ -68,10 +120,27 @@ def bed_grains(profile, stretch, l0: float) -> np.ndarray:
     if stretch is None:
         return np.zeros((0, 2))
     x0, x1, floor = stretch
-    top = float(profile.height(np.linspace(x0, x1, 64)).max())
+    top = float(_surface_over(profile, x0, x1).max())
     packed = geometry.packed_bed([x0, floor], [x1, top], l0)
-    below = packed[:, 1] + 0.5 * l0 <= profile.height(packed[:, 0]) + 1e-9 * l0
+    below = packed[:, 1] + 0.5 * l0 <= _lowest_over(profile, packed[:, 0], 0.5 * l0)
     return packed[below]
+
+
+def _lowest_over(profile, x: np.ndarray, half: float) -> np.ndarray:
+    """The lowest bed surface over [x - half, x + half] for each x (a vertical
+    face inside the span counts with its lower end, one at its ends not), so
+    that a grain under the surface is wholly under it, not cut by a step such as
+    the last block's downstream face."""
+    tiny = 1e-9 * half
+    lowest = np.minimum(
+        profile.height(x - half + tiny), profile.height(x + half - tiny)
+    )
+    kx, kz = profile.knots[:, 0], profile.knots[:, 1]
+    inside = (kx[None, :] > x[:, None] - half + tiny) & (
+        kx[None, :] < x[:, None] + half - tiny
+    )
+    knots = np.min(np.where(inside, kz[None, :], np.inf), axis=1)
+    return np.minimum(lowest, knots) + tiny
 
 
 def clear_of(points: np.ndarray, grains: np.ndarray, distance: float) -> np.ndarray:
