@@ -29,6 +29,7 @@ from ._flume_grains import (
     block_sink,
     clear_of,
     movable_stretch,
+    pit_depth,
 )
 from ._probes import BodiesMoved, FluidCount, WaterLevel
 
@@ -179,7 +180,7 @@ def flume(**overrides) -> Case:
     held = max(held + ([] if tail is None else [tail]), default=None)
     area = stored_area(profile, length, h_in, held, l0)
     if stretch is not None:  # a movable bed may be scoured down to its floor
-        area += (stretch[1] - stretch[0]) * c["movable_depth"]
+        area += (stretch[1] - stretch[0]) * pit_depth(profile, stretch)
     pool = _pool(c, u_in, area, rows, n_fluid)
     floor = profile.lowest if stretch is None else stretch[2]
     extent, inflow = (top, length, weir, floor), (first_wall, rows, len(inflow_pts))

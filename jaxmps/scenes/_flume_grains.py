@@ -70,6 +70,13 @@ def movable_stretch(c: dict, profile, length: float):
     return x0, x1, floor
 
 
+def pit_depth(profile, stretch) -> float:
+    """The movable bed's pit depth [m] below the highest bed over it (at least
+    `movable_depth`; more where `movable_stretch` deepened it under blocks)."""
+    x0, x1, floor = stretch
+    return float(_surface_over(profile, x0, x1).max()) - floor
+
+
 def _surface_over(profile, x0: float, x1: float) -> np.ndarray:
     """The bed's heights over [x0, x1] at 64 points and at its knots there (its
     highest and lowest points, which the 64 may miss)."""
