@@ -224,7 +224,9 @@ def _bed_line(args) -> list[str]:
         f"Grains d = l0, {bed['grain_density']:.1f} kg/m^3, k_n "
         f"{bed['stiffness']:.0f} N/m (seed 002's rule at its dt {SEED_STEP:g} s), "
         f"mu_r {bed['rolling']:g}; the bed {bed['movable_length']:.2f} m long from "
-        f"the apron's end, {100 * bed['movable_depth']:g} cm deep; no hole cut.",
+        f"the apron's end, at least {100 * bed['movable_depth']:g} cm deep (laid "
+        "deeper by whole spacings until a row of grains ends flush under the "
+        "blocks); no hole cut.",
         "",
     ]
 
