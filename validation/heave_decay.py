@@ -30,7 +30,7 @@ import time
 import jax
 import numpy as np
 from _common import HERE, machine_info
-from _heave_theory import free_heave
+from _heave_theory import free_decay, free_heave
 
 import jaxmps
 from jaxmps.calibration import fit_damped_oscillation
@@ -97,6 +97,17 @@ def _section_case(section, spacing, tank, depth, offset, t_end, **settings):
     return case, mass, draft
 
 
+def echo_time(tank, beam, depth):
+    """When the fastest radiated waves (long waves, sqrt(g h)) that left the body's
+    sides at release are back at them from the tank's end walls [s]."""
+    return (tank - beam) / np.sqrt(9.81 * depth)
+
+
+def observe_probes_at_start(case):
+    """The case's probes in its initial state."""
+    return jaxmps.scenes.observe_probes(case.probes)(case.scene, case.state)
+
+
 def rollout(case, t_end):
     """The case's probes saved every 0.01 s to `t_end` (as arrays), the wall time
     [s] and the run's result."""
@@ -129,6 +140,14 @@ def measure(section, spacing, tank, depth, offset, t_end, fit, scheme="standard"
     # section's bilges are left out of it).
     w_th, zeta_th, added = free_heave(c["box_width"], draft, c["depth"])
     measured = _measured()["heave_period"] if section == "ship" else None
+    # The same decay in linear theory (no walls), compared and fitted alike over
+    # the time before the first long waves return from the end walls.
+    y0 = float(observe_probes_at_start(case)["box_y"])
+    y_th = y0 + offset * (1.0 - free_decay(c["box_width"], draft, c["depth"], t))
+    free = t <= echo_time(tank, c["box_width"], c["depth"])
+    w_free, zeta_free, _ = fit_decay(t[free], y[free])
+    w_th_free, zeta_th_free, _ = fit_decay(t[free], y_th[free])
+    rms = float(np.sqrt(np.mean((y[free] - y_th[free]) ** 2)) / offset)
     return dict(
         section=section,
         scheme=scheme,
@@ -146,9 +165,24 @@ def measure(section, spacing, tank, depth, offset, t_end, fit, scheme="standard"
         zeta_theory=zeta_th,
         added_mass_over_mass=added,
         period_error=(w_th / w) - 1,
+        echo_time=echo_time(tank, c["box_width"], c["depth"]),
+        period_early=2 * np.pi / w_free,
+        zeta_early=zeta_free,
+        period_theory_early=2 * np.pi / w_th_free,
+        zeta_theory_early=zeta_th_free,
+        rms_vs_theory=rms,
+        release_y=y0,
+        release_offset=offset,
         wall_s=wall,
         result=str(result),
-        series=dict(time=t.tolist(), box_y=y.tolist()),
+        series=dict(
+            time=t.tolist(),
+            box_y=y.tolist(),
+            theory_y=y_th.tolist(),
+            box_x=s["box_x"].tolist(),
+            box_angle=s["box_angle"].tolist(),
+            level_left=s["level_left"].tolist(),
+        ),
     )
 
 
@@ -189,7 +223,66 @@ def markdown(rows, info, args):
             f" {r['zeta']:.3f} | {r['zeta_theory']:.3f} | {r['fit_residual']:.2f} |"
             f" {r['wall_s']:.0f} |"
         )
+    early = [r for r in rows if "period_theory_early" in r]
+    if early:
+        lines += [
+            "",
+            f"Before the echo (t <= {early[0]['echo_time']:.2f} s, when long waves"
+            " radiated at the release are back from the end walls): the run and the"
+            " linear-theory decay of the rectangle in open water (the Cummins decay of"
+            " `_heave_theory.free_decay`, from the same release) fitted alike, and"
+            " their rms difference over that time as a fraction of the offset. The"
+            " theory's own fit differs from its natural period: a33 and b33 vary"
+            " with frequency, so its decay is no single damped cosine.",
+            "",
+            "| l0 [m] | period [s] | theory, fitted [s] | error | zeta | theory,"
+            " fitted | rms difference / offset |",
+            "|---|---|---|---|---|---|---|",
+        ]
+        for r in early:
+            lines.append(
+                f"| {r['spacing']:.4g} | {r['period_early']:.4f} |"
+                f" {r['period_theory_early']:.4f} |"
+                f" {r['period_early'] / r['period_theory_early'] - 1:+.1%} |"
+                f" {r['zeta_early']:.3f} | {r['zeta_theory_early']:.3f} |"
+                f" {r['rms_vs_theory']:.3f} |"
+            )
     return "\n".join(lines) + "\n"
+
+
+def plot(rows, path, offset):
+    """The runs' heave against the linear-theory decay, as displacement from
+    the Archimedes height over the release `offset`."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(7, 3.6))
+    shown = [r for r in rows if "theory_y" in r.get("series", {})]
+    for r in shown:
+        t = np.asarray(r["series"]["time"])
+        y = np.asarray(r["series"]["box_y"])
+        ax.plot(
+            t, (y - r["release_y"]) / offset - 1, label=f"l0 = {r['spacing']:.3g} m"
+        )
+    if shown:
+        r = shown[-1]
+        t = np.asarray(r["series"]["time"])
+        y = np.asarray(r["series"]["theory_y"])
+        ax.plot(
+            t,
+            (y - r["release_y"]) / offset - 1,
+            "k--",
+            label="linear theory, open water",
+        )
+        ax.axvline(r["echo_time"], color="0.6", lw=0.8)
+    ax.set_xlabel("t [s]")
+    ax.set_ylabel("heave / offset")
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
 
 
 def add_decay_arguments(parser, tank, depth, t_end, fit):
@@ -248,6 +341,8 @@ def main():
         scheme=args.scheme,
     )
     write_spacings(path, args, measure_row, markdown)
+    rows = json.loads(path.with_suffix(".json").read_text())["rows"]
+    plot(rows, path.with_suffix(".png"), args.offset)
 
 
 if __name__ == "__main__":
