@@ -237,9 +237,11 @@ def make_params(
     gravity: float = 9.81,
     beta: float = 0.97,
     sound_speed: float = 10.0,
+    relaxation_step: float | None = None,
     dtype=None,
 ) -> Params:
-    """Params with gravity `gravity` [m/s^2] pointing down the last axis.
+    """Params with gravity `gravity` [m/s^2] pointing down the last axis
+    (`relaxation_step`: see `Params`; None relaxes the density per step of `dt`).
 
     `dtype` defaults to JAX's default float (float32, or float64 with x64 enabled).
     """
@@ -253,6 +255,9 @@ def make_params(
         dt=jnp.asarray(dt, dtype),
         beta=jnp.asarray(beta, dtype),
         sound_speed=jnp.asarray(sound_speed, dtype),
+        relaxation_step=(
+            None if relaxation_step is None else jnp.asarray(relaxation_step, dtype)
+        ),
     )
 
 

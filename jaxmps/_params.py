@@ -14,6 +14,7 @@ from ._numerics import is_concrete
 VALUE_RULES = {
     "density": "positive",
     "dt": "positive",
+    "relaxation_step": "positive",
     "beta": "positive",
     "sound_speed": "positive",
     "viscosity": ">= 0",
@@ -307,6 +308,16 @@ class Params(eqx.Module):
             compressed by g H / c^2; a floating body (whose lattice is not) floats
             too high where that is large: the floating scenes take ten times
             sqrt(2 g H), 0.5 % (`scenes.floating_box`).
+        relaxation_step: the time [s] over which the pressure source restores its
+            share of the number-density error (`MixedSource.gamma`,
+            `HigherOrderSource.gamma`): the source's density term is
+            rho0 / (dt relaxation_step) (n0 - n) / n0, so the restoring rate per
+            second, and the velocity it imposes, do not depend on the step. None
+            (the default): `dt` (the source as printed, a share per step), under
+            which a shorter `dt` or `dt_max` relaxes harder per second and damps
+            the flow more. The scenes' setting `relaxation_step="calm"` sets it
+            to the step a calm flow takes at their resolution, so that a run at a
+            shorter step relaxes as gently per second as the default run.
         inflow: inflow parameters, present exactly when the Scene has an inflow.
         motion: parameters of the Scene's prescribed wall motion (`HarmonicParams`
             or `StrokeParams`), present exactly when it has one.
@@ -326,6 +337,9 @@ class Params(eqx.Module):
     dt: Float[Array, ""] = eqx.field(converter=jnp.asarray)
     beta: Float[Array, ""] = eqx.field(converter=jnp.asarray)
     sound_speed: Float[Array, ""] = eqx.field(converter=jnp.asarray)
+    relaxation_step: Float[Array, ""] | None = eqx.field(
+        default=None, converter=_optional_array
+    )
     inflow: InflowParams | None = None
     motion: HarmonicParams | StrokeParams | None = None
     rigid: RigidParams | None = None

@@ -57,11 +57,16 @@ def _step(
     dt: Scalar | None = None,
     counted: Mask | None = None,
 ) -> tuple[State, StepInfo]:
-    """One step of `dt` (None: `params.dt`). `params.dt` stays the reference step
-    (`PressureInputs.reference_dt`); the stages see `params` with `dt` in it.
-    `counted` (None: all): the particles whose outcome the step judges (`_judged`:
-    a slab of `simulate_slabs` steps its halo's copies too)."""
+    """One step of `dt` (None: `params.dt`). `params.dt` stays the largest step
+    (the body stages' reference: an elastic sub-step is a share of it);
+    `params.relaxation_step`, or where it is None `params.dt`, is the pressure
+    source's (`PressureInputs.reference_dt`); the stages see `params` with `dt` in
+    it. `counted` (None: all): the particles whose outcome the step judges
+    (`_judged`: a slab of `simulate_slabs` steps its halo's copies too)."""
     reference_dt = params.dt
+    relaxation_dt = (
+        params.dt if params.relaxation_step is None else params.relaxation_step
+    )
     if dt is not None:
         params = eqx.tree_at(lambda p: p.dt, params, dt)
     disc, dt = scene.discretisation, params.dt
@@ -114,7 +119,7 @@ def _step(
             surface,
             x_star,
             u_star,
-            reference_dt,
+            relaxation_dt,
             coupling,
         )
         solution = scene.solver(disc, scene.laplacian, scene.grid, params, inputs)
@@ -543,9 +548,10 @@ def step(
 
     Args:
         scene, params, state: the simulation.
-        dt: the step's length [s]. `params.dt` stays the reference step of the
-            pressure source's density relaxation (`PressureInputs.reference_dt`),
-            as in an adaptive rollout, whose steps this replays.
+        dt: the step's length [s]. `params.dt` stays the largest step, and with
+            `params.relaxation_step` None the reference step of the pressure
+            source's density relaxation (`PressureInputs.reference_dt`), as in an
+            adaptive rollout, whose steps this replays.
         batch_axis: when this call runs under `jax.vmap(..., axis_name=name)`,
             `name`: the batch then decides jointly whether the carried neighbour
             lists can be reused (`neighbours.reuse_or_build`).

@@ -332,3 +332,40 @@ def test_bilge_radius_rounds_the_lower_edges():
     assert top.sum() == round(width / l0)
     with pytest.raises(ValueError, match="bilge_radius"):
         jaxmps.scenes.floating_box(spacing=0.02, bilge_radius=0.06)
+
+
+def test_a_shorter_step_damps_the_heave_unless_the_density_relaxes_per_second():
+    """The pressure source restores a share gamma of the number-density error per
+    `Params.relaxation_step`: by default per step of dt (the source as printed),
+    so a shorter step restores it harder per second; with the scene setting
+    `relaxation_step="calm"` per the calm step of the resolution, whatever dt. The
+    box of the heave test at B/10 released 1 cm deep overshoots its Archimedes
+    height by 0.24 of the offset at the default step (2.9 ms); at 0.71 ms by -0.02
+    relaxed per step (the harder relaxation damped the overshoot away), by 0.20
+    relaxed per calm step."""
+
+    def overshoot(**settings):
+        case = jaxmps.scenes.floating_box(
+            box_width=0.2,
+            box_height=0.1,
+            density_ratio=0.5,
+            initial_draft=0.06,
+            tank_length=3.0,
+            depth=0.4,
+            spacing=0.02,
+            scheme="standard_ds",
+            t_end=0.4,
+            **settings,
+        )
+        s = _run_probes(case, 0.4, saves=40)
+        return (s["box_y"].max() - 0.39) / 0.01 - 1, case
+
+    default, case = overshoot()
+    assert case.params.relaxation_step is None
+    calm = float(case.params.dt)
+    per_step, _ = overshoot(dt=calm / 4)
+    per_second, case = overshoot(dt=calm / 4, relaxation_step="calm")
+    assert float(case.params.relaxation_step) == pytest.approx(calm)
+    assert default > 0.15
+    assert per_step < default - 0.15
+    assert abs(per_second - default) < 0.07

@@ -106,6 +106,8 @@ def test_inputs_refused_alike_by_every_entry_point():
         jaxmps.make_params(2, dt=1e-3, gravity=float("nan"))
     with pytest.raises(ValueError, match=r"Params.density must be positive and fin"):
         jaxmps.make_params(2, dt=1e-3, density=float("inf"))
+    with pytest.raises(ValueError, match=r"Params.relaxation_step must be positive"):
+        jaxmps.make_params(2, dt=1e-3, relaxation_step=-1e-3)
     with pytest.raises(ValueError, match=r"Params.rigid.density must be positive"):
         jaxmps._params.RigidParams(
             density=np.array([np.inf]), mu_static=np.zeros(1), mu_kinetic=np.zeros(1)

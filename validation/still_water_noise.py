@@ -11,8 +11,8 @@ The high-accuracy scheme must be no noisier than `standard` in any tank; the
 dynamic stabilisation (`schemes.standard(dynamic_stabilisation=True)`).
 
 Run: python validation/still_water_noise.py [--spacings 0.02] [--dt-max 5e-4
---out still_water_noise_dt_0.5ms_cpu]  (writes results/still_water_noise_cpu.{json,md}
-or the --out name)
+[--relaxation-step calm] --out still_water_noise_dt_0.5ms_cpu]  (writes
+results/still_water_noise_cpu.{json,md} or the --out name)
 """
 
 import argparse
@@ -32,9 +32,14 @@ SPACINGS = (0.02, 0.01)
 SCHEMES = ("standard", "high_accuracy", "standard_ds")
 
 
-def run(width, depth, spacing, scheme, t_end=2.0, dt_max=None):
+def run(width, depth, spacing, scheme, t_end=2.0, dt_max=None, relaxation=None):
     case = jaxmps.scenes.hydrostatic(
-        width=width, depth=depth, spacing=spacing, scheme=scheme, dt_max=dt_max
+        width=width,
+        depth=depth,
+        spacing=spacing,
+        scheme=scheme,
+        dt_max=dt_max,
+        relaxation_step=relaxation,
     )
     probe = {p.name: p for p in case.probes}["pressure_bottom"]
     reference = jaxmps.scenes.hydrostatic_pressure(case)
@@ -74,6 +79,11 @@ def main(argv=None):
         default=None,
         help="the adaptive step's upper bound [s] (default: the scene's)",
     )
+    p.add_argument(
+        "--relaxation-step",
+        default=None,
+        help="the scenes' relaxation_step ('calm' or seconds; default: per step)",
+    )
     p.add_argument("--out", default="still_water_noise_cpu", help="results name")
     args = p.parse_args(argv)
     jax.config.update("jax_enable_x64", True)
@@ -83,7 +93,18 @@ def main(argv=None):
             if width / spacing > 60 and spacing < 0.02:
                 continue  # the 1 m tank at 1 cm: 5000 particles, left to a GPU
             for scheme in SCHEMES:
-                rows.append(run(width, depth, spacing, scheme, dt_max=args.dt_max))
+                relax = args.relaxation_step
+                relax = relax if relax in (None, "calm") else float(relax)
+                rows.append(
+                    run(
+                        width,
+                        depth,
+                        spacing,
+                        scheme,
+                        dt_max=args.dt_max,
+                        relaxation=relax,
+                    )
+                )
                 print(rows[-1], flush=True)
     out = dict(machine=machine_info(), rows=rows)
     (HERE / "results" / f"{args.out}.json").write_text(json.dumps(out, indent=1))
@@ -94,7 +115,13 @@ def main(argv=None):
         "Default settings (adaptive steps), 2 s from rest, statistics over 0.5-2 s,",
         "relative to rho g (H - y_p). Largest step: "
         + ("the scene's" if args.dt_max is None else f"dt_max = {args.dt_max} s")
-        + " (the step taken in still water).",
+        + " (the step taken in still water); the density relaxed "
+        + (
+            "per step"
+            if args.relaxation_step is None
+            else f"per relaxation_step={args.relaxation_step!r}"
+        )
+        + ".",
         "",
         "| tank W x H [m] | l0 [m] | particles | standard mean / noise "
         "| high_accuracy mean / noise | standard_ds mean / noise "

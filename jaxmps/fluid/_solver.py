@@ -27,9 +27,10 @@ class PressureInputs(eqx.Module):
         pressure_k: the pressures of the previous step [Pa] (a warm start).
         kind, active: the particles' kinds and active flags.
         reference_dt: the step a per-step relaxation is meant for [s]:
-            `Params.dt`, which is the step itself with fixed steps and the largest
-            step (`dt_max`) with adaptive ones (see `MixedSource`); None: the
-            step itself.
+            `Params.relaxation_step` (the scenes' calm step for their resolution),
+            or where that is None `Params.dt`, the step itself with fixed steps
+            and the largest step (`dt_max`) with adaptive ones (see
+            `MixedSource`); None: the step itself.
         coupling: what the bodies impose (None without bodies); a source sees
             the pairs of `Coupling.source_view` (`n_star` is already of it).
     """

@@ -40,6 +40,7 @@ COMMON = {
     "dt": "adaptive",
     "dt_max": None,
     "dt_min": None,
+    "relaxation_step": None,
     "viscosity": _default(make_params, "viscosity"),
     "density": _default(make_params, "density"),
     "gravity": _default(make_params, "gravity"),
@@ -202,6 +203,7 @@ RULES = {
     "dt": _POSITIVE,
     "dt_max": _POSITIVE,
     "dt_min": _POSITIVE,
+    "relaxation_step": _POSITIVE,
     "viscosity": _NON_NEGATIVE,
     "density": _POSITIVE,
     "gravity": _NON_NEGATIVE,
@@ -394,6 +396,9 @@ def _check_type(scene: str, key: str, default: Any, value: Any) -> None:
     if key == "dt":
         ok = number or value == "adaptive"
         want = "'adaptive' or a number of seconds"
+    elif key == "relaxation_step":
+        ok = number or value is None or value == "calm"
+        want = "'calm', a number of seconds or None (per step)"
     elif isinstance(default, bool):
         ok, want = isinstance(value, (bool, np.bool_)), "true or false"
     elif isinstance(default, str):
@@ -454,7 +459,7 @@ def _largest_step(config: dict, velocity_scale: float) -> float:
             "largest time step from; give `dt_max` (seconds) as well, or a "
             "positive `gravity`."
         )
-    dt = CALM_COURANT * config["spacing"] / velocity_scale
+    dt = calm_step(config, velocity_scale)
     if config["solver"] == "explicit":
         dt = min(dt, 0.4 * config["spacing"] / config["sound_speed"])
     return float(dt)
@@ -564,7 +569,14 @@ def tank_case(
 
 def case_params(config: dict, dim: int, velocity_scale: float):
     """Params from the common settings, dt from the Courant rule for
-    `velocity_scale` (or the `dt` setting)."""
+    `velocity_scale` (or the `dt` setting), and the pressure source's density
+    relaxation per step of dt (the `relaxation_step` setting None), per the step
+    a calm flow takes at this resolution and velocity scale whatever `dt` or
+    `dt_max` say ("calm"; per step where there is no velocity scale), or per a
+    number of seconds (`Params.relaxation_step`)."""
+    relax = config["relaxation_step"]
+    if relax == "calm":
+        relax = calm_step(config, velocity_scale)
     return make_params(
         dim,
         dt=default_dt(config, velocity_scale),
@@ -573,7 +585,16 @@ def case_params(config: dict, dim: int, velocity_scale: float):
         gravity=config["gravity"],
         beta=config["beta"],
         sound_speed=config["sound_speed"],
+        relaxation_step=relax,
     )
+
+
+def calm_step(config: dict, velocity_scale: float) -> float | None:
+    """`CALM_COURANT` l0 / U: the largest step of a calm flow at the scene's
+    resolution and velocity scale U [s] (None where U is 0)."""
+    if not velocity_scale > 0:
+        return None
+    return CALM_COURANT * config["spacing"] / velocity_scale
 
 
 def nearest_wall(walls: np.ndarray, wall_kind: np.ndarray, point) -> tuple[int, ...]:
