@@ -106,8 +106,11 @@ def standard(
     linear theory at h/L 0.2 / 0.4 / 0.6 (default: -3.3 / -2.0 / -2.8 %), and at
     the scenes' default step the still-water bottom pressure 1.5-21x quieter
     (0.2-1.0 % of rho g H over seven tanks at 1 and 2 cm, default 0.9-5.7 %; at
-    dt_max = 0.5 ms it is noisier than the default in two of the seven and than
-    `high_accuracy` in all), for a semi-implicit step 11-29 %
+    dt_max = 0.5 ms 0.11-0.65 %, default 0.9-6.1 %, with the density relaxed per
+    calm step, `relaxation_step="calm"`; relaxed per step noisier than the
+    default in two of seven), and the heave of a floating box within
+    1 % of linear potential flow's period, its decay 1.1 x (default 1.9 x;
+    validation/heave_decay.py), for a semi-implicit step 11-29 %
     dearer (dam break, 7k particles, benchmarks/NOTES.md §16). Measured once at
     h/L 0.2 / 0.4 / 0.6, dynamic stabilisation with the shift kept gave -1.5 /
     -2.2 / -1.5 %: both the guard and the shift shorten the period. The unshifted
