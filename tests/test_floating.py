@@ -335,6 +335,22 @@ def test_bilge_radius_rounds_the_lower_edges():
         jaxmps.scenes.floating_box(spacing=0.02, bilge_radius=0.06)
 
 
+def _heave_box(**settings):
+    """The heave tests' box: B = 0.2 m, H = 0.1 m at half the water's density
+    (draft 5 cm), released 1 cm deeper in a 3 m tank of 0.4 m of water,
+    `standard_ds`."""
+    return jaxmps.scenes.floating_box(
+        box_width=0.2,
+        box_height=0.1,
+        density_ratio=0.5,
+        initial_draft=0.06,
+        tank_length=3.0,
+        depth=0.4,
+        scheme="standard_ds",
+        **settings,
+    )
+
+
 @pytest.mark.slow
 def test_box_heave_decay_follows_linear_potential_flow_before_the_echo():
     """The B/T = 4 box (0.2 m x 0.1 m at half the water's density, 0.4 m of water in
@@ -349,17 +365,7 @@ def test_box_heave_decay_follows_linear_potential_flow_before_the_echo():
     the decay). Measured: 0.6885 s (-0.6 %), ratio 0.168 (1.09 x), the fit's rms
     residual 0.02 of the offset; the default scheme's collision guard and minimum
     shift damp it at 1.9 x (validation/heave_decay.py)."""
-    case = jaxmps.scenes.floating_box(
-        box_width=0.2,
-        box_height=0.1,
-        density_ratio=0.5,
-        initial_draft=0.06,
-        tank_length=3.0,
-        depth=0.4,
-        spacing=0.01,
-        scheme="standard_ds",
-        t_end=1.42,
-    )
+    case = _heave_box(spacing=0.01, t_end=1.42)
     s = _run_probes(case, 1.42, saves=142)
     t, y = s["time"], s["box_y"]
     free = t <= 2.8 / math.sqrt(9.81 * 0.4)
@@ -380,18 +386,7 @@ def test_a_shorter_step_damps_the_heave_unless_the_density_relaxes_per_second():
     relaxed per calm step."""
 
     def overshoot(**settings):
-        case = jaxmps.scenes.floating_box(
-            box_width=0.2,
-            box_height=0.1,
-            density_ratio=0.5,
-            initial_draft=0.06,
-            tank_length=3.0,
-            depth=0.4,
-            spacing=0.02,
-            scheme="standard_ds",
-            t_end=0.4,
-            **settings,
-        )
+        case = _heave_box(spacing=0.02, t_end=0.4, **settings)
         s = _run_probes(case, 0.4, saves=40)
         return (s["box_y"].max() - 0.39) / 0.01 - 1, case
 
