@@ -43,6 +43,7 @@ from ._porous import accepts_porous
 from ._probes import AbstractProbe as AbstractProbe
 from ._probes import BedLowering as BedLowering
 from ._probes import BodiesMoved as BodiesMoved
+from ._probes import BodyPressure as BodyPressure
 from ._probes import BodyValue as BodyValue
 from ._probes import DisplacedDepth as DisplacedDepth
 from ._probes import Displacement as Displacement

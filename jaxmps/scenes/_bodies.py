@@ -33,6 +33,7 @@ from ._common import (
     whole,
 )
 from ._probes import (
+    BodyPressure,
     BodyValue,
     DisplacedDepth,
     ElasticValue,
@@ -204,9 +205,10 @@ def _release_draft(c: dict, bw: float, bh: float, depth: float) -> float:
 
 
 def _floating_probes(
-    c: dict, length: float, across: list, x0: float, bw: float
+    c: dict, length: float, across: list, x0: float, bw: float, keel: float
 ) -> tuple:
-    """The floating box's probes (see `floating_box`)."""
+    """The floating box's probes (see `floating_box`); `keel` is the bottom face's
+    height in the box's frame (below its particles' centroid)."""
     l0, dim = c["spacing"], int(c["dim"])
     rho_g = c["density"] * c["gravity"]
     # Far columns: whole columns of the initial lattice, a quarter of the way from
@@ -218,6 +220,14 @@ def _floating_probes(
         BodyValue("box_y", 0, "centre", dim - 1),
         BodyValue("box_angle", 0, "angle"),
         BodyValue("box_force_y", 0, "force", dim - 1),
+        BodyPressure(
+            "pressure_keel",
+            0,
+            (0.0,) * (dim - 1) + (keel,),
+            (0.0,) * (dim - 1) + (-1.0,),
+            l0,
+            1.75 * l0,  # 3 or 4 columns: no lattice offset on its rim
+        ),
         WaterLevel("level_left", 3.5 * l0, 0.0, l0),
         WaterLevel("level_right", length - 3.5 * l0, 0.0, l0),
         PressureLevel("surface_left", 5.5 * l0, 5 * l0, 0.0, rho_g, 2 * l0),
@@ -251,7 +261,9 @@ def floating_box(**overrides) -> Case:
     "fluid" (default; at Archimedes' draft) or "pairs".
 
     Probes: `box_x`, `box_y` (centre), `box_angle` [rad], `box_force_y` (fluid force,
-    gravity excluded), `level_left`, `level_right` (water level 3 l0 from each wall),
+    gravity excluded), `pressure_keel` (the pressure on the bottom face's middle,
+    extrapolated to the face from the box's first two layers, `BodyPressure`),
+    `level_left`, `level_right` (water level 3 l0 from each wall),
     `surface_left`, `surface_right` (the level where the hydrostatic pressure of a
     strip 3-8 l0 from each wall extrapolates to zero, `PressureLevel`),
     `displaced` (the depth of water the box displaces, counted by mass,
@@ -282,6 +294,7 @@ def floating_box(**overrides) -> Case:
         [x0] + [0.0] * (dim - 2) + [depth], [x0 + bw] + across + [depth + bh], l0
     )
     box = _round_bilges(box, x0, bw, depth, float(c["bilge_radius"]))
+    keel = float(box[:, -1].min() - box[:, -1].mean()) - 0.5 * l0
     box[:, -1] -= draft
     mass_properties = _mass_properties(c, box, depth - draft)
     if c["heel"]:
@@ -310,7 +323,7 @@ def floating_box(**overrides) -> Case:
         velocity_scale(bh, c["gravity"]),
         _orientation(dim, float(c["heel"])),
     )
-    probes = _floating_probes(c, length, across, x0, bw)
+    probes = _floating_probes(c, length, across, x0, bw, keel)
     config = {
         **c,
         "box_width": bw,
