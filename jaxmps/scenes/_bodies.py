@@ -261,8 +261,8 @@ def floating_box(**overrides) -> Case:
     "fluid" (default; at Archimedes' draft) or "pairs".
 
     Probes: `box_x`, `box_y` (centre), `box_angle` [rad], `box_force_y` (fluid force,
-    gravity excluded), `pressure_keel` (the pressure on the bottom face's middle,
-    extrapolated to the face from the box's first two layers, `BodyPressure`),
+    gravity excluded), `pressure_keel` (the water's pressure on the bottom face's
+    middle, `BodyPressure`),
     `level_left`, `level_right` (water level 3 l0 from each wall),
     `surface_left`, `surface_right` (the level where the hydrostatic pressure of a
     strip 3-8 l0 from each wall extrapolates to zero, `PressureLevel`),
