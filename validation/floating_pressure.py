@@ -9,20 +9,22 @@ pressure sees (the `surface_left/right` probes, `PressureLevel`) and z a height.
 A body particle's centre lies l0/2 inside the face, where the model does not hold
 the water's pressure. Pressed like the fluid it replaces, the box is solved as a
 fluid of its own, lighter density (its dry top held at that density's surface
-head): the pressure falls more slowly inside it than in the water, and its bottom
-row reads above the water's hydrostatic value at its centres; for a fluid of the
-box's density down to the face, by (rho - rho_b) g l0/2. Reported, per position
+head); with the default scheme's gradient (the minimum-pressure shift) its bottom
+row then reads above the water's hydrostatic value at its centres (for a fluid of
+the box's density down to the face, by (rho - rho_b) g l0/2), with the corrected
+gradient (`standard_ds`, `high_accuracy`) it does not. Reported, per position
 along each wetted face:
 
 - 'centre': the particle's pressure over rho g (s - z_i), z_i its centre;
 - 'interface': the bottom row's pressure over rho g (s - z_face) - rho_b g l0/2
   (continuity across the face with a fluid of the box's density inside it);
 - 'face': the pressure on the face, extrapolated linearly from the box's first two
-  layers (P = 1.5 P_1 - 0.5 P_2, as the `BodyPressure` probe), over
-  rho g (s - z_face);
+  layers (P = 1.5 P_1 - 0.5 P_2), over rho g (s - z_face);
 - 'water': the water's first two layers outside the bottom face (in bins of l0
   along it), extrapolated linearly to the face, over rho g (s - z_face);
-- 'probe': the scene's `pressure_keel` gauge (the bottom face's middle, 1.75 l0).
+- 'probe': the scene's `pressure_keel` gauge (`BodyPressure`: the water within
+  2 l0 of the bottom face's middle, 1.75 l0 either side, fitted linearly against
+  the distance from the face and read there).
 
 Every value is a mean over every step of the window: a few dozen samples alias
 the pressure's step-to-step noise (1 s means of 60 samples at B/10 spread by
@@ -93,9 +95,14 @@ def _columns(values, keys, l0):
     return {int(b): float(values[bins == b].mean()) for b in np.unique(bins)}
 
 
-def measure(spacing, ratio, solver, settle, window):
+def measure(spacing, ratio, solver, settle, window, scheme=None):
+    settings = {} if scheme is None else {"scheme": scheme}
     case = jaxmps.scenes.floating_box(
-        density_ratio=ratio, spacing=spacing, body_pressure="fluid", solver=solver
+        density_ratio=ratio,
+        spacing=spacing,
+        body_pressure="fluid",
+        solver=solver,
+        **settings,
     )
     c, dt, l0 = case.config, float(case.params.dt), spacing
     rho_g = c["density"] * c["gravity"]
@@ -178,6 +185,7 @@ def measure(spacing, ratio, solver, settle, window):
             water.append(dict(at=(b + 0.5) * l0, face_ratio=ratio_b))
     return dict(
         solver=solver,
+        scheme=scheme or case.config.get("scheme", "standard"),
         spacing=l0,
         box_over_l0=bins,
         density_ratio=ratio,
@@ -216,8 +224,18 @@ LABELS = {
     "side centre": "side columns, at their centres",
     "side face_ratio": "side faces, from the box (two layers)",
     "water face_ratio": "bottom face, from the water (two layers)",
-    "probe": "`pressure_keel` probe (middle of the keel, 1.75 l0)",
+    "probe": "`pressure_keel` gauge (the water at the keel's middle)",
 }
+
+
+def _label(m):
+    """The solver, and the scheme where it is not the default."""
+    scheme = m.get("scheme", "standard")
+    return m["solver"] if scheme == "standard" else f"{m['solver']} ({scheme})"
+
+
+def _key(m):
+    return (m["solver"], m.get("scheme", "standard"), m["density_ratio"], m["spacing"])
 
 
 def markdown(results, info):
@@ -236,14 +254,14 @@ def markdown(results, info):
     for m in results:
         for key, (mean, lo, hi) in summary(m).items():
             lines.append(
-                f"| {m['solver']} | {m['spacing']} | {m['box_over_l0']} |"
+                f"| {_label(m)} | {m['spacing']} | {m['box_over_l0']} |"
                 f" {m['density_ratio']} | {m['draft_l0']:+.2f} | {LABELS[key]} |"
                 f" {mean:.3f} | {lo:.3f} | {hi:.3f} |"
             )
     lines.append("")
     for m in results:
         lines.append(
-            f"Per position, {m['solver']}, l0 = {m['spacing']} m, ratio"
+            f"Per position, {_label(m)}, l0 = {m['spacing']} m, ratio"
             f" {m['density_ratio']} (x [m] along the bottom, or depth [m] on a side:"
             " centre / interface / face; water face):"
         )
@@ -270,6 +288,8 @@ CASES = [
     "semi_implicit:0.3:0.01",
     "semi_implicit:0.8:0.02",
     "semi_implicit:0.8:0.01",
+    "semi_implicit:0.5:0.01:standard_ds",
+    "semi_implicit:0.5:0.01:high_accuracy",
     "explicit:0.5:0.02",
     "explicit:0.5:0.01",
 ]
@@ -281,21 +301,28 @@ def main():
         "--cases",
         nargs="+",
         default=CASES,
-        help="solver:density_ratio:spacing [m] (default: the table's matrix)",
+        help="solver:density_ratio:spacing [m][:scheme] (default: the table's matrix)",
     )
     parser.add_argument("--settle", type=float, default=2.0)
     parser.add_argument("--window", type=float, default=1.0)
     parser.add_argument("--name", default="floating_pressure_cpu")
+    parser.add_argument(
+        "--merge", action="store_true", help="keep the file's rows not re-measured"
+    )
     args = parser.parse_args()
     jax.config.update("jax_enable_x64", True)
+    path = HERE / "results" / args.name
     results = []
     for case in args.cases:
-        solver, ratio, l0 = case.split(":")
-        m = measure(float(l0), float(ratio), solver, args.settle, args.window)
+        solver, ratio, l0, *scheme = case.split(":")
+        m = measure(float(l0), float(ratio), solver, args.settle, args.window, *scheme)
         results.append(m)
         print(json.dumps({"case": case, **summary(m)}), flush=True)
+    if args.merge and path.with_suffix(".json").exists():
+        new = {_key(m) for m in results}
+        old = json.loads(path.with_suffix(".json").read_text())["results"]
+        results = [m for m in old if _key(m) not in new] + results
     info = machine_info()
-    path = HERE / "results" / args.name
     path.with_suffix(".json").write_text(
         json.dumps({"machine": info, "results": results}, indent=1)
     )
