@@ -26,6 +26,10 @@ then `.compile()`; compile time reported separately) and run once
 Usage:
     python benchmarks/adaptive_steps.py            # everything (~20 min, 2 CPU)
     python benchmarks/adaptive_steps.py --quick    # l0 = 2 cm, to 1 s
+    python benchmarks/adaptive_steps.py --x64 --parts runs --scheme standard_ds \
+        --merge --out benchmarks/results/adaptive_steps_schemes_cpu
+                                                   # adaptive runs of one scheme
+                                                   # (or --solver explicit) only
 
 Writes `benchmarks/results/adaptive_steps_<backend>.{json,md,png}`.
 """
@@ -122,19 +126,26 @@ def dam_break_scaled(scale: float, spacing: float, **settings):
     return jaxmps.scenes.dam_break(spacing=spacing, **geometry, **settings)
 
 
+_DEFAULTS = ("semi_implicit", "standard")
+
+
 def runs_to_end(args) -> list[dict]:
     rows = []
     for scale in args.scales:
         settings = {} if args.courant is None else {"courant": args.courant}
-        case = dam_break_scaled(scale, args.spacing, **settings)
+        case = dam_break_scaled(
+            scale, args.spacing, solver=args.solver, scheme=args.scheme, **settings
+        )
         record = rollout(case, args.t_end, args.save_every)
-        courant = case.scene.time_step.courant
-        record.update(geometry=f"{scale:g}x", mode="adaptive", courant=courant)
+        courant = case.scene.time_step.courant_for(case.scene)
+        variant = [v for v in (args.solver, args.scheme) if v not in _DEFAULTS]
+        mode = " ".join(["adaptive", *variant])
+        record.update(geometry=f"{scale:g}x", mode=mode, courant=courant)
         rows.append(record)
         _say(record)
         dt = float(case.params.dt)
-        if args.courant is not None:
-            continue  # the fixed steps do not depend on it
+        if args.courant is not None or variant:
+            continue  # the fixed-step scan is the default scheme's, at its Courant
         for halving in range(args.max_halvings + 1):
             fixed = dam_break_scaled(scale, args.spacing, dt=dt / 2**halving)
             record = rollout(fixed, args.t_end, args.save_every)
@@ -329,6 +340,16 @@ def main(argv=None):
     p.add_argument("--scales", type=float, nargs="+", default=None)
     p.add_argument(
         "--courant", type=float, default=None, help="the adaptive runs' Courant"
+    )
+    p.add_argument(
+        "--solver",
+        default="semi_implicit",
+        help="the adaptive runs' solver (`explicit`: no fixed scan)",
+    )
+    p.add_argument(
+        "--scheme",
+        default="standard",
+        help="the adaptive runs' scheme (standard_ds, high_accuracy; no fixed scan)",
     )
     p.add_argument("--merge", action="store_true", help="add to the results file")
     p.add_argument("--out", default=None)

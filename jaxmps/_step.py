@@ -482,8 +482,9 @@ def time_step_limits(scene: Scene, params: Params, state: State) -> dict[str, Sc
     l0 = scene.spacing
     speed = mobile_maximum(jnp.linalg.norm(state.velocity, axis=-1), state)
     inf = jnp.asarray(jnp.inf, params.dt.dtype)
+    courant = stepping.courant_for(scene)
     limits["courant"] = jnp.where(
-        speed > 0, stepping.courant * l0 / jnp.where(speed > 0, speed, 1.0), inf
+        speed > 0, courant * l0 / jnp.where(speed > 0, speed, 1.0), inf
     )
     accel = state.acceleration
     limits["force"] = jnp.where(

@@ -5,8 +5,14 @@ import math
 import equinox as eqx
 import jax.numpy as jnp
 
+from . import fluid
 from ._params import Params
 from ._types import Scalar
+
+# The default Courant numbers of adaptive steps (`Adaptive.courant`): with the
+# semi-implicit solver's dynamic stabilisation, and otherwise.
+STABILISED_COURANT = 0.2
+COURANT = 0.1
 
 
 class Adaptive(eqx.Module):
@@ -33,13 +39,22 @@ class Adaptive(eqx.Module):
     `jaxmps.time_step`.
 
     Attributes:
-        courant: Courant number of the step on the flow's largest speed. 0.1:
-            MPS studies take 0.1-0.2 (seed 000 0.2, seed 002 0.1-0.2), and a
-            semi-implicit dam break of a 0.6 m x 0.3 m column at l0 = 1 cm
-            blew up after its impacts at 0.2 (velocities of 80 m/s at 1.19 s:
-            the pressure spikes of a squeezed particle grow as the step
-            shrinks) and ran to 2 s at 0.1 and 0.05
-            (`benchmarks/adaptive_steps.py`).
+        courant: Courant number of the step on the flow's largest speed; None
+            (the default): `STABILISED_COURANT` (0.2, the step seeds 000 and
+            001 take) for the semi-implicit solver with dynamic stabilisation
+            (`scheme=standard_ds`, `high_accuracy`), `COURANT` (0.1) otherwise.
+            The default scheme's collision guard acts on the start-of-step
+            positions, so a longer step lets particles meet inside it: a
+            semi-implicit dam break of a 0.6 m x 0.3 m column at l0 = 1 cm blew
+            up after its impacts at 0.2 (velocities of 80 m/s at 1.19 s; in
+            float64 `time_step_below_minimum` at 1.40 s in one measurement, 29
+            steps taken again in another, and the doubled column stopped at
+            1.51 s) and ran to 2 s at 0.1 and 0.05
+            (`benchmarks/adaptive_steps.py`). Dynamic stabilisation separates
+            the particles at their predicted positions; with it the same
+            column, halved and doubled, runs to 2 s at 0.2 with no step taken
+            again, and the surge front is that of 0.1 to 1 %
+            (`benchmarks/NOTES.md` §17).
         force: factor of the force limit (0.25, the usual SPH value, e.g.
             Monaghan 1992).
         stability: fraction of the hard stability limits (`Scene.viscous_limit`,
@@ -51,7 +66,7 @@ class Adaptive(eqx.Module):
             instability, not a flow to follow).
     """
 
-    courant: float = 0.1
+    courant: float | None = None
     force: float = 0.25
     stability: float = 0.5
     dt_min: float | None = None
@@ -59,6 +74,8 @@ class Adaptive(eqx.Module):
     def __check_init__(self):
         for name in ("courant", "force", "stability"):
             value = getattr(self, name)
+            if name == "courant" and value is None:
+                continue
             if not (isinstance(value, (int, float)) and 0 < value <= 1):
                 raise ValueError(f"Adaptive.{name} must be in (0, 1], got {value!r}.")
         if self.dt_min is not None and not (
@@ -67,6 +84,17 @@ class Adaptive(eqx.Module):
             raise ValueError(
                 f"Adaptive.dt_min must be positive and finite [s], got {self.dt_min!r}."
             )
+
+    def courant_for(self, scene) -> float:
+        """The Courant number of `scene`'s steps: `courant`, or where None the
+        default for its scheme (`STABILISED_COURANT` where the semi-implicit
+        projection has dynamic stabilisation, else `COURANT`)."""
+        if self.courant is not None:
+            return self.courant
+        stabilised = isinstance(scene.solver, fluid.SemiImplicit) and isinstance(
+            scene.stabiliser, fluid.DynamicStabilisation
+        )
+        return STABILISED_COURANT if stabilised else COURANT
 
     def smallest(self, params: Params) -> Scalar:
         """The smallest step a run may take [s]."""
