@@ -68,7 +68,7 @@ def test_the_default_courant_number_follows_the_scheme(settings, courant):
     assert float(limits["courant"]) == pytest.approx(courant * 0.02 / 3.0)
 
 
-@pytest.mark.parametrize("courant", [0.0, 1.5, -0.1, "0.2"])
+@pytest.mark.parametrize("courant", [0.0, 1.5, -0.1, float("nan")])
 def test_a_courant_number_outside_the_unit_interval_is_refused(courant):
     with pytest.raises(ValueError, match="Adaptive.courant must be in"):
         jaxmps.Adaptive(courant=courant)
