@@ -9,8 +9,9 @@ from . import fluid
 from ._params import Params
 from ._types import Scalar
 
-# The default Courant numbers of adaptive steps (`Adaptive.courant`): with the
-# semi-implicit solver's dynamic stabilisation, and otherwise.
+# Choice: the default Courant numbers of adaptive steps (`Adaptive.courant`):
+# with the semi-implicit solver's dynamic stabilisation, and otherwise (measured
+# in `benchmarks/NOTES.md` §17).
 STABILISED_COURANT = 0.2
 COURANT = 0.1
 
