@@ -386,6 +386,7 @@ def test_a_turned_beam_bends_the_same_way_turned(dim):
     )
 
 
+@pytest.mark.slow
 def test_gradient_of_the_tip_through_youngs_modulus_and_poisson_ratio():
     """d(tip deflection)/dE and /d(nu) of a short rollout against central
     differences (float64, rel 1e-4); a stiffer beam bends less."""
@@ -575,6 +576,7 @@ def _impact(dt, **overrides):
     return wall, body, float(energy.max() / energy[0])
 
 
+@pytest.mark.slow
 def test_an_elastic_block_hits_a_wall_with_an_impulse_that_barely_depends_on_dt():
     """Seed 000 §3.2.3 (Table 3.2-4) on a coarser lattice (l0 = 0.25 m, 100
     particles): the 2.5 m block at 1 m/s, E = 1e6 Pa, nu = 0.48, one elastic
@@ -790,6 +792,7 @@ def test_uneven_steps_keep_the_elastic_sub_step_and_stay_calm():
     assert float(jnp.max(out.saved)) < 10.0
 
 
+@pytest.mark.slow
 def test_the_rubber_gate_opens_as_a_bent_beam_and_holds_the_water_above_it():
     """`elastic_gate` (Antoci et al. 2007) at l0 = 2.5 mm (two particles through
     the gate): the gate hangs from its clamped rows, its probes follow its lowest

@@ -434,6 +434,7 @@ def test_box_heave_decay_follows_linear_potential_flow_before_the_echo():
     assert rms < 0.05 * 0.01
 
 
+@pytest.mark.slow
 def test_a_shorter_step_damps_the_heave_unless_the_density_relaxes_per_second():
     """The pressure source restores a share gamma of the number-density error per
     `Params.relaxation_step`: by default per step of dt (the source as printed),
