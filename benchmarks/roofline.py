@@ -343,12 +343,8 @@ def measure(size: int, solver: str, dtype: str, args) -> dict:
     """One (size, solver) row, in this process (dtype set by `main`)."""
     sys.path.insert(0, str(HERE))
     from _common import fixed_steps
-    from side_by_side import COLUMN_WIDTH, jaxmps_match
 
-    import jaxmps
-
-    m, _ = jaxmps_match(size, solver)
-    case = fixed_steps(jaxmps.scenes.dam_break(spacing=COLUMN_WIDTH / m, solver=solver))
+    case = fixed_steps(_dam_break(size, solver, args.dim))
     traced = trace_rollout(case, args.steps, args.start_steps)
     n = case.scene.capacity
     particle_steps = n * args.steps
@@ -356,6 +352,7 @@ def measure(size: int, solver: str, dtype: str, args) -> dict:
         size=size,
         solver=solver,
         dtype=dtype,
+        dim=args.dim,
         particles=n,
         max_neighbours=case.scene.max_neighbours,
         steps=args.steps,
@@ -367,14 +364,27 @@ def measure(size: int, solver: str, dtype: str, args) -> dict:
     )
 
 
-def case_lists(size: int, solver: str):
-    """The neighbour lists of the case's initial state (for the gather rate)."""
-    from side_by_side import COLUMN_WIDTH, jaxmps_match
-
+def _dam_break(size: int, solver: str, dim: int):
+    """The dam break of about `size` particles: in 2-D the side-by-side's case (m
+    particles across the column), in 3-D the scaling benchmark's."""
     import jaxmps
 
-    m, _ = jaxmps_match(size, solver)
-    case = jaxmps.scenes.dam_break(spacing=COLUMN_WIDTH / m, solver=solver)
+    if dim == 2:
+        from side_by_side import COLUMN_WIDTH, jaxmps_match
+
+        m, _ = jaxmps_match(size, solver)
+        return jaxmps.scenes.dam_break(spacing=COLUMN_WIDTH / m, solver=solver)
+    from scaling import spacing_for
+
+    spacing = spacing_for(size, dim, solver)
+    return jaxmps.scenes.dam_break(spacing=spacing, solver=solver, dim=dim)
+
+
+def case_lists(size: int, solver: str, dim: int):
+    """The neighbour lists of the case's initial state (for the gather rate)."""
+    import jaxmps
+
+    case = _dam_break(size, solver, dim)
     scene, state = case.scene, case.state
     return jaxmps.neighbours.build(
         scene.grid,
@@ -389,7 +399,8 @@ def case_lists(size: int, solver: str):
 def markdown(info: dict, rows: list[dict]) -> str:
     limits = rows[0]["limits"]
     lines = [
-        "# Roofline: the 2-D dam break's steps against this host's limits",
+        f"# Roofline: the {rows[0].get('dim', 2)}-D dam break's steps against "
+        "this host's limits",
         "",
         f"- machine: {info.get('platform')}, {info.get('cpu_model')}, "
         f"{info.get('cpu_usable')} usable cores",
@@ -420,7 +431,8 @@ def markdown(info: dict, rows: list[dict]) -> str:
     for r in rows:
         lines += [
             "",
-            f"## {r['solver']}, {r['particles']} particles, {r['dtype']}, "
+            f"## {r['solver']}, {r['particles']} particles ({r['max_neighbours']} "
+            f"slots), {r['dtype']}, "
             f"{r['steps']} steps from step {r['start_steps']}",
             "",
             f"{r['ms_per_step']:.2f} ms/step, {r['particle_steps_per_s']:.3g} "
@@ -454,6 +466,7 @@ def markdown(info: dict, rows: list[dict]) -> str:
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--size", default="25k", help="particles, e.g. 7k or 25000")
+    p.add_argument("--dim", type=int, default=2, choices=(2, 3))
     p.add_argument("--solvers", nargs="+", default=["explicit", "semi_implicit"])
     p.add_argument("--dtype", choices=("float32", "float64"), default="float64")
     p.add_argument("--steps", type=int, default=100, help="steps traced")
@@ -472,7 +485,10 @@ def main() -> None:
 
     size = parse_size(args.size)
     limits = host_limits(
-        case_lists(size, args.solvers[0]), args.dtype, args.dram_mib, args.repeats
+        case_lists(size, args.solvers[0], args.dim),
+        args.dtype,
+        args.dram_mib,
+        args.repeats,
     )
     print(json.dumps(limits, indent=1))
     rows = []
