@@ -53,6 +53,50 @@ def test_settings_of_other_scenes_are_checked_by_the_same_table():
         jaxmps.scenes.floating_box(density_ratio=0.0)
 
 
+def test_every_word_setting_has_its_words():
+    """Each scene's word settings (beyond the common ones, checked in `resolve`)
+    are in the table of words, with their defaults among them."""
+    from jaxmps.scenes import COMMON
+    from jaxmps.scenes._common import _CHOICES
+
+    for scene, defaults in jaxmps.scenes.available().items():
+        for name, default in defaults.items():
+            if isinstance(default, str) and name not in COMMON:
+                assert name in _CHOICES, f"{scene}: word setting {name!r} has no words"
+                assert default in _CHOICES[name], f"{scene}: {name}={default!r}"
+
+
+# A misspelt word is refused even where the scene's other settings leave it
+# unused (a rigid block's `contact`, a flume's `friction_normal` without blocks).
+MISSPELT_WORDS = [
+    ("block_impact", "contact", "psuh"),
+    ("friction_tilt", "contact", "bogus"),
+    ("flume", "friction_normal", "weight"),
+    ("block_stack", "layout", "pile"),
+    ("sloshing_tank", "slope_wall", "type3"),
+    ("wave_tank", "end", "sand"),
+    ("tsunami_quay", "ship_body", "foam"),
+]
+
+
+@pytest.mark.parametrize(("scene", "name", "word"), MISSPELT_WORDS)
+def test_a_misspelt_word_is_refused_by_name(scene, name, word):
+    with pytest.raises(ValueError, match=rf"{name}='{word}' is not a choice.*valid: "):
+        jaxmps.scenes.build(scene, **{name: word})
+
+
+@pytest.mark.parametrize("scene", ["dam_break", "wave_tank"])
+@pytest.mark.parametrize("gauge_x", [-0.1, 100.0])
+def test_a_gauge_outside_the_tank_is_refused(scene, gauge_x):
+    with pytest.raises(ValueError, match=r"gauge_x=.* lies outside the tank"):
+        jaxmps.scenes.build(scene, gauge_x=gauge_x)
+
+
+def test_a_box_off_its_reach_names_box_x():
+    with pytest.raises(ValueError, match=r"box_x .* must exceed column_width"):
+        jaxmps.scenes.dam_break_box(box_x=0.05)
+
+
 def test_gravity_zero_runs_with_a_given_dt():
     case = jaxmps.scenes.hydrostatic(spacing=0.05, gravity=0.0, dt=1e-3)
     assert float(case.params.dt) == pytest.approx(1e-3)

@@ -97,6 +97,7 @@ def resolve(name: str, specific: dict[str, Any], overrides: dict[str, Any]) -> d
     for key, value in overrides.items():
         _check_type(name, key, defaults[key], value)
         _check_range(name, key, value)
+        _check_choice(name, key, value)
     # Numbers as Python numbers: whole for counts, float for the rest (a value
     # given as `--set gravity=0` or numpy.float32(9.81) is the float 0.0, 9.81).
     overrides = {
@@ -385,6 +386,36 @@ def _whole(value) -> bool:
         return math.isfinite(float(value)) and float(value) == int(value)
     except OverflowError:
         return False
+
+
+# The words a scene's word settings accept (the common ones, `solver`, `scheme`,
+# `preconditioner` and `wall_pressure`, are checked in `resolve`). Checked on every
+# override, also where the scene's other settings leave it unused (`contact` of a
+# rigid body, `friction_normal` of a flume without blocks), so that a misspelt word
+# is refused rather than ignored. A scene may accept fewer (`floating_box`'s
+# `body_pressure` has no "auto") and says so itself.
+_CHOICES = {
+    "body": ("rigid", "elastic"),
+    "ship_body": ("rigid", "elastic"),
+    "contact": ("auto", "pressure", "push"),
+    "layout": ("stack", "row"),
+    "friction_normal": ("reaction", "pressure", "submerged_weight"),
+    "body_pressure": ("auto", "fluid", "pairs"),
+    "target": ("dimple", "particle"),
+    "slope_wall": ("staircase", "type1", "type2"),
+    "plate_walls": ("both", "left", "right"),
+    "end": ("wall", "beach"),
+}
+
+
+def _check_choice(scene: str, key: str, value: Any) -> None:
+    """A word setting's override is one of its words (`_CHOICES`)."""
+    valid = _CHOICES.get(key)
+    if valid is not None and value not in valid:
+        raise ValueError(
+            f"{key}={value!r} is not a choice of scene '{scene}'; valid: "
+            f"{', '.join(valid)}."
+        )
 
 
 def _check_type(scene: str, key: str, default: Any, value: Any) -> None:

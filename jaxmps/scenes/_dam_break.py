@@ -36,6 +36,11 @@ def dam_break(**overrides) -> Case:
             "The column must fit in the tank: column_width < tank_length and "
             "column_height < tank_height."
         )
+    if not 0 <= c["gauge_x"] <= length:
+        raise ValueError(
+            f"gauge_x={c['gauge_x']:g} m lies outside the tank [0, {length:g}] m "
+            "(tank_length); the gauge would read no water."
+        )
     across = [whole(c["tank_width"], l0)] if dim == 3 else []
     scene, params, state, extra = tank_case(
         c,

@@ -206,10 +206,6 @@ def grain_drop(**overrides) -> Case:
     layers = boundary_layers(c)
     horizontal = [width] * (dim - 1)
     walls, wall_kind = geometry.tank([0.0] * dim, horizontal + [top], l0, layers=layers)
-    if c["target"] not in ("dimple", "particle"):
-        raise ValueError(
-            f"target={c['target']!r} is not available; valid: 'dimple', 'particle'."
-        )
     # Floor particles sit at (i + 1/2) l0: between two, or on one.
     shift = 0.0 if c["target"] == "dimple" else 0.5 * l0
     middle = [round(0.5 * width / l0) * l0 + shift] * (dim - 1)

@@ -215,10 +215,6 @@ def _geometry(c: dict) -> dict:
     """The scene's lengths in model metres on the lattice of l0 (the wave height
     off it) and its times in model seconds, checked against each other."""
     l0, s = c["spacing"], c["scale"]
-    if c["ship_body"] not in ("rigid", "elastic"):
-        raise ValueError(
-            f"ship_body={c['ship_body']!r} is not a body model; valid: rigid, elastic."
-        )
     g = {}
     for key in _LENGTHS:
         g[key] = None if c[key] is None else whole(float(c[key]) * s, l0)

@@ -59,10 +59,13 @@ def wave_tank(**overrides) -> Case:
     c = resolve("wave_tank", DEFAULTS, overrides)
     if int(c["dim"]) != 2:
         raise ValueError("wave_tank is 2-D only for now (dim=2).")
-    if c["end"] not in ("wall", "beach"):
-        raise ValueError(f"end must be 'wall' or 'beach', got {c['end']!r}.")
     l0 = c["spacing"]
     length, depth = whole(c["tank_length"], l0), whole(c["depth"], l0)
+    if not 0 <= c["gauge_x"] <= length:
+        raise ValueError(
+            f"gauge_x={c['gauge_x']:g} m lies outside the tank [0, {length:g}] m "
+            "(tank_length); the gauge would read no water."
+        )
     height = whole(1.6 * depth, l0)
     half_stroke = 0.5 * float(c["stroke"])
     layers = boundary_layers(c)
