@@ -157,3 +157,15 @@ def test_beach_geometry_and_short_run():
     assert np.all(np.abs(x[walls, 1] - surface[walls]) < 1.5 * case.config["spacing"])
     tr = jaxmps.simulate(case.scene, case.params, case.state, 60, 60)
     assert int(tr.state.active.sum()) == int(case.state.active.sum())
+
+
+def test_no_ramp_drives_the_full_stroke_from_the_start():
+    """ramp_periods = 0 is a stroke at full amplitude from t = 0 (it once divided
+    0 by 0 and fed the piston NaN)."""
+    case = jaxmps.scenes.wave_tank(ramp_periods=0.0)
+    motion = case.params.motion
+    times, stroke = np.asarray(motion.times), np.asarray(motion.stroke)
+    assert np.all(np.isfinite(stroke))
+    half = 0.5 * case.config["stroke"]
+    period = case.config["wave_period"]
+    np.testing.assert_allclose(stroke, half * np.sin(2 * np.pi * times / period))

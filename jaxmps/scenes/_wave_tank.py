@@ -122,7 +122,11 @@ def wave_tank(**overrides) -> Case:
     params = case_params(c, 2, velocity_scale)
     t_end = float(c["t_end"])
     times = np.linspace(0.0, t_end + period, int((t_end + period) / period * 40) + 1)
-    ramp = np.clip(times / (float(c["ramp_periods"]) * period), 0.0, 1.0)
+    ramp_time = float(c["ramp_periods"]) * period
+    # ramp_periods = 0: the full stroke from the start (no ramp, and no 0 / 0).
+    ramp = (
+        np.clip(times / ramp_time, 0.0, 1.0) if ramp_time > 0 else np.ones_like(times)
+    )
     stroke = half_stroke * ramp * np.sin(2 * math.pi * times / period)
     dtype = params.dt.dtype
     motion_params = StrokeParams(
