@@ -84,7 +84,7 @@ class Result(eqx.Enumeration):
 
 # Equinox's `Enumeration` has no public accessor for an item's integer code, which
 # run files store and batched results are compared by, nor for its name, which
-# reports print; these four functions are the only places that read its private
+# reports print; these five functions are the only places that read its private
 # fields.
 
 
@@ -118,6 +118,11 @@ def result_name(result: Result) -> str:
     return next(
         name for name in Result._name_to_item if bool(result == getattr(Result, name))
     )
+
+
+def result_message(result: Result) -> str:
+    """The message of a (concrete, unbatched) `Result` item."""
+    return Result._index_to_message[int(np.asarray(result_code(result)))]
 
 
 def update_result(old: Result, pred: Bool[ArrayLike, ""], item: Result) -> Result:

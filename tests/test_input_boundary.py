@@ -171,3 +171,11 @@ def test_inputs_refused_alike_by_every_entry_point():
             2,
             iterations=0,
         )
+
+
+def test_a_spin_up_that_fails_is_refused_naming_settle():
+    """A scene that settles its bodies before their release says so when the
+    settling stops (here dry blocks 500x lighter than water, whose contact asks
+    for a step below the smallest), instead of a runtime error from inside JIT."""
+    with pytest.raises(ValueError, match=r"settle=0.3 s\) stopped at t = .*settle=0"):
+        jaxmps.scenes.block_stack(density_ratio=0.002)

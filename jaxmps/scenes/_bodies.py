@@ -11,6 +11,7 @@ import numpy as np
 
 from .. import geometry
 from .._build import NEIGHBOUR_SKIN, add_elastic_bodies, add_rigid_bodies, make_state
+from .._result import result_code, result_message
 from .._simulate import simulate
 from .._step import step, with_neighbour_lists, without_neighbour_lists
 from .._types import Kind
@@ -515,7 +516,15 @@ def _spun_up(scene, params, state, duration, gravity=None):
             params,
             (gravity, held, held),
         )
-    state = simulate(scene, params, state, times=[duration]).state
+    out = simulate(scene, params, state, times=[duration], throw=False)
+    if int(np.asarray(result_code(out.result))) != 0:
+        raise ValueError(
+            f"The spin-up before the bodies' release (settle={duration:g} s) stopped "
+            f"at t = {float(out.state.time):.3g} s: {result_message(out.result)} "
+            "Check the bodies' settings (density_ratio, mu_static, gap, ...), or "
+            "release at once with settle=0."
+        )
+    state = out.state
     return eqx.tree_at(
         lambda s: (s.time, s.step),
         state,
