@@ -169,3 +169,14 @@ def test_no_ramp_drives_the_full_stroke_from_the_start():
     half = 0.5 * case.config["stroke"]
     period = case.config["wave_period"]
     np.testing.assert_allclose(stroke, half * np.sin(2 * np.pi * times / period))
+
+
+def test_deep_water_theory_stays_finite_and_unresolved_waves_are_refused():
+    """The dispersion relation and the piston's height ratio hold in deep water
+    (cosh 2kh beyond floats once overflowed), and a wave shorter than a few
+    particle spacings is refused by its period."""
+    k = linear_wave_number(0.3, 0.2, 9.81)
+    assert (2 * math.pi / 0.3) ** 2 == pytest.approx(9.81 * k * math.tanh(0.2 * k))
+    assert piston_height_ratio(1e4, 1.0) == 2.0
+    with pytest.raises(ValueError, match=r"wave_period=0.001 s makes waves .* long"):
+        jaxmps.scenes.wave_tank(wave_period=0.001)

@@ -28,16 +28,19 @@ DEFAULTS = {
 }
 
 
+# The shortest wave the tank makes, in particle spacings: a wave must span
+# several kernel radii (2.1 l0) to be a wave of the particles at all.
+RESOLVED_WAVELENGTH = 8
+
+
 def linear_wave_number(period: float, depth: float, gravity: float) -> float:
     """k from the dispersion relation omega^2 = g k tanh(k h) (Newton)."""
     omega = 2 * math.pi / period
     k = omega**2 / gravity
     for _ in range(50):
-        f = gravity * k * math.tanh(k * depth) - omega**2
-        df = (
-            gravity * math.tanh(k * depth)
-            + gravity * k * depth / math.cosh(k * depth) ** 2
-        )
+        t = math.tanh(k * depth)
+        f = gravity * k * t - omega**2
+        df = gravity * t + gravity * k * depth * (1 - t) * (1 + t)  # sech^2 = 1 - t^2
         k -= f / df
     return k
 
@@ -46,7 +49,11 @@ def piston_height_ratio(k: float, depth: float) -> float:
     """Linear piston wave-maker theory: H / S = 2 (cosh 2kh - 1) / (sinh 2kh + 2kh)
     (Dean & Dalrymple 1991, eq. 6.22)."""
     kh2 = 2 * k * depth
-    return 2 * (math.cosh(kh2) - 1) / (math.sinh(kh2) + kh2)
+    # Divided through by cosh 2kh (whose 1 / cosh = 2 e^-x / (1 + e^-2x) cannot
+    # overflow): deep water tends to 2 without inf / inf.
+    e = math.exp(-kh2)
+    sech = 2 * e / (1 + e * e)
+    return 2 * (1 - sech) / (math.tanh(kh2) + kh2 * sech)
 
 
 def wave_tank(**overrides) -> Case:
@@ -138,6 +145,12 @@ def wave_tank(**overrides) -> Case:
     state = make_state(scene, position, kind)
     probes = (StripLevel("eta", float(c["gauge_x"]), 5 * l0, l0, depth),)
     k = linear_wave_number(period, depth, c["gravity"])
+    if 2 * math.pi / k < RESOLVED_WAVELENGTH * l0:
+        raise ValueError(
+            f"wave_period={period:g} s makes waves {2 * math.pi / k:.3g} m long, "
+            f"under {RESOLVED_WAVELENGTH} particle spacings ({l0:g} m): lengthen "
+            "wave_period or refine spacing."
+        )
     config = {
         **c,
         "tank_length": length,
