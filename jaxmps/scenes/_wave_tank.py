@@ -68,7 +68,9 @@ def wave_tank(**overrides) -> Case:
         raise ValueError("wave_tank is 2-D only for now (dim=2).")
     l0 = c["spacing"]
     length, depth = whole(c["tank_length"], l0), whole(c["depth"], l0)
-    if not 0 <= c["gauge_x"] <= length:
+    # A gauge placed outside the tank is refused; the default one (placed for
+    # the default tank) is left where it is when only the tank is shortened.
+    if "gauge_x" in overrides and not 0 <= c["gauge_x"] <= length:
         raise ValueError(
             f"gauge_x={c['gauge_x']:g} m lies outside the tank [0, {length:g}] m "
             "(tank_length); the gauge would read no water."
