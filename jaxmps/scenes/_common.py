@@ -636,6 +636,17 @@ def nearest_wall(walls: np.ndarray, wall_kind: np.ndarray, point) -> tuple[int, 
     return (int(candidates[np.argmin(d)]),)
 
 
+def check_gauge(overrides: dict, c: dict, length: float) -> None:
+    """Refuse a `gauge_x` the user placed outside a tank of `length` [m]; the
+    default one (placed for the default tank) is left where it is when only the
+    tank is shortened."""
+    if "gauge_x" in overrides and not 0 <= c["gauge_x"] <= length:
+        raise ValueError(
+            f"gauge_x={c['gauge_x']:g} m lies outside the tank [0, {length:g}] m "
+            "(tank_length); the gauge would read no water."
+        )
+
+
 def whole(value: float, spacing: float) -> float:
     """Round a length to a whole number of spacings (at least one).
 

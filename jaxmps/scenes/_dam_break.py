@@ -1,7 +1,14 @@
 """Collapse of a water column (Martin & Moyce 1952; Koshizuka & Oka 1996)."""
 
 from ._case import Case
-from ._common import nearest_wall, resolve, tank_case, velocity_scale, whole
+from ._common import (
+    check_gauge,
+    nearest_wall,
+    resolve,
+    tank_case,
+    velocity_scale,
+    whole,
+)
 from ._probes import FrontPosition, PressureAt, StripLevel, WaterLevel
 
 DEFAULTS = {
@@ -36,13 +43,7 @@ def dam_break(**overrides) -> Case:
             "The column must fit in the tank: column_width < tank_length and "
             "column_height < tank_height."
         )
-    # A gauge placed outside the tank is refused; the default one (placed for
-    # the default tank) is left where it is when only the tank is shortened.
-    if "gauge_x" in overrides and not 0 <= c["gauge_x"] <= length:
-        raise ValueError(
-            f"gauge_x={c['gauge_x']:g} m lies outside the tank [0, {length:g}] m "
-            "(tank_length); the gauge would read no water."
-        )
+    check_gauge(overrides, c, length)
     across = [whole(c["tank_width"], l0)] if dim == 3 else []
     scene, params, state, extra = tank_case(
         c,

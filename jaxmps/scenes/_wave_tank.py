@@ -10,7 +10,14 @@ from .._build import make_state
 from .._types import Kind
 from ..fluid import PrescribedMotion, StrokeParams, Tabulated
 from ._case import Case
-from ._common import boundary_layers, case_params, case_scene, resolve, whole
+from ._common import (
+    boundary_layers,
+    case_params,
+    case_scene,
+    check_gauge,
+    resolve,
+    whole,
+)
 from ._probes import StripLevel
 
 DEFAULTS = {
@@ -56,6 +63,34 @@ def piston_height_ratio(k: float, depth: float) -> float:
     return 2 * (1 - sech) / (math.tanh(kh2) + kh2 * sech)
 
 
+def _wave_number(period: float, depth: float, gravity: float, l0: float) -> float:
+    """The linear wave number of `period` in `depth`; a wave shorter than
+    RESOLVED_WAVELENGTH spacings is refused, naming `wave_period`."""
+    k = linear_wave_number(period, depth, gravity)
+    if 2 * math.pi / k < RESOLVED_WAVELENGTH * l0:
+        raise ValueError(
+            f"wave_period={period:g} s makes waves {2 * math.pi / k:.3g} m long, "
+            f"under {RESOLVED_WAVELENGTH} particle spacings ({l0:g} m): lengthen "
+            "wave_period or refine spacing."
+        )
+    return k
+
+
+def _stroke(c: dict, period: float, t_end: float, dtype) -> StrokeParams:
+    """The piston's position table X(t) = (S/2) r(t) sin(2 pi t / T) to one period
+    past `t_end`, 40 samples a period; r ramps over `ramp_periods` periods (none
+    at 0: the full stroke from the start, and no 0 / 0)."""
+    times = np.linspace(0.0, t_end + period, int((t_end + period) / period * 40) + 1)
+    ramp_time = float(c["ramp_periods"]) * period
+    ramp = (
+        np.clip(times / ramp_time, 0.0, 1.0) if ramp_time > 0 else np.ones_like(times)
+    )
+    stroke = 0.5 * float(c["stroke"]) * ramp * np.sin(2 * math.pi * times / period)
+    return StrokeParams(
+        times=np.asarray(times, dtype), stroke=np.asarray(stroke, dtype)
+    )
+
+
 def wave_tank(**overrides) -> Case:
     """Still water of `depth` in a tank of `tank_length`; a piston at x = 0 moves
     with X(t) = (S/2) r(t) sin(2 pi t / T), r ramping linearly from 0 to 1 over
@@ -68,13 +103,9 @@ def wave_tank(**overrides) -> Case:
         raise ValueError("wave_tank is 2-D only for now (dim=2).")
     l0 = c["spacing"]
     length, depth = whole(c["tank_length"], l0), whole(c["depth"], l0)
-    # A gauge placed outside the tank is refused; the default one (placed for
-    # the default tank) is left where it is when only the tank is shortened.
-    if "gauge_x" in overrides and not 0 <= c["gauge_x"] <= length:
-        raise ValueError(
-            f"gauge_x={c['gauge_x']:g} m lies outside the tank [0, {length:g}] m "
-            "(tank_length); the gauge would read no water."
-        )
+    check_gauge(overrides, c, length)
+    period = float(c["wave_period"])
+    k = _wave_number(period, depth, c["gravity"], l0)
     height = whole(1.6 * depth, l0)
     half_stroke = 0.5 * float(c["stroke"])
     layers = boundary_layers(c)
@@ -116,7 +147,6 @@ def wave_tank(**overrides) -> Case:
     ).astype(np.int32)
     n_fluid = len(fluid)
 
-    period = float(c["wave_period"])
     lower = np.array([-travel - (layers + 3) * l0, -(layers + 2) * l0])
     upper = np.array([length + (layers + 3) * l0, height + depth])
     scene = case_scene(c, position, (lower, upper), kind)
@@ -130,29 +160,12 @@ def wave_tank(**overrides) -> Case:
     velocity_scale = max(math.sqrt(c["gravity"] * depth), omega_scale)
     params = case_params(c, 2, velocity_scale)
     t_end = float(c["t_end"])
-    times = np.linspace(0.0, t_end + period, int((t_end + period) / period * 40) + 1)
-    ramp_time = float(c["ramp_periods"]) * period
-    # ramp_periods = 0: the full stroke from the start (no ramp, and no 0 / 0).
-    ramp = (
-        np.clip(times / ramp_time, 0.0, 1.0) if ramp_time > 0 else np.ones_like(times)
-    )
-    stroke = half_stroke * ramp * np.sin(2 * math.pi * times / period)
-    dtype = params.dt.dtype
-    motion_params = StrokeParams(
-        times=np.asarray(times, dtype), stroke=np.asarray(stroke, dtype)
-    )
+    motion_params = _stroke(c, period, t_end, params.dt.dtype)
     params = eqx.tree_at(
         lambda p: p.motion, params, motion_params, is_leaf=lambda x: x is None
     )
     state = make_state(scene, position, kind)
     probes = (StripLevel("eta", float(c["gauge_x"]), 5 * l0, l0, depth),)
-    k = linear_wave_number(period, depth, c["gravity"])
-    if 2 * math.pi / k < RESOLVED_WAVELENGTH * l0:
-        raise ValueError(
-            f"wave_period={period:g} s makes waves {2 * math.pi / k:.3g} m long, "
-            f"under {RESOLVED_WAVELENGTH} particle spacings ({l0:g} m): lengthen "
-            "wave_period or refine spacing."
-        )
     config = {
         **c,
         "tank_length": length,
