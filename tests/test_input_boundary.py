@@ -97,6 +97,27 @@ def test_a_box_off_its_reach_names_box_x():
         jaxmps.scenes.dam_break_box(box_x=0.05)
 
 
+@pytest.mark.parametrize(
+    ("scene", "settings", "name"),
+    [
+        ("hydrostatic", dict(spacing=1.0), "width"),
+        ("floating_box", dict(spacing=0.02, box_height=0.009), "box_height"),
+        ("block_stack", dict(spacing=0.1, gap=0.04), "gap"),
+        ("dam_break", dict(spacing=0.05, column_width=0.02), "column_width"),
+    ],
+)
+def test_a_length_under_half_a_spacing_is_refused_by_name(scene, settings, name):
+    """Such a length would be built one spacing long (a 0.2 m tank at spacing 1 m
+    became a 1 m tank of one particle)."""
+    with pytest.raises(ValueError, match=rf"{name}=.* under half the particle spacing"):
+        jaxmps.scenes.build(scene, **settings)
+
+
+def test_a_length_of_half_a_spacing_or_more_is_built_in_whole_spacings():
+    case = jaxmps.scenes.hydrostatic(spacing=0.05, width=0.2, depth=0.03)
+    assert case.config["depth"] == pytest.approx(0.05)  # 0.6 spacings: one
+
+
 def test_gravity_zero_runs_with_a_given_dt():
     case = jaxmps.scenes.hydrostatic(spacing=0.05, gravity=0.0, dt=1e-3)
     assert float(case.params.dt) == pytest.approx(1e-3)

@@ -30,6 +30,7 @@ from ._common import (
     discretisation,
     floating_sound_speed,
     resolve,
+    setting_length,
     velocity_scale,
     whole,
 )
@@ -287,12 +288,12 @@ def floating_box(**overrides) -> Case:
         raise ValueError(
             f"body_pressure must be 'fluid' or 'pairs', got {c['body_pressure']!r}."
         )
-    bw, bh = whole(c["box_width"], l0), whole(c["box_height"], l0)
-    length, depth = whole(c["tank_length"], l0), whole(c["depth"], l0)
+    bw, bh = setting_length(c, "box_width"), setting_length(c, "box_height")
+    length, depth = setting_length(c, "tank_length"), setting_length(c, "depth")
     c = {**c, "sound_speed": floating_sound_speed(c, depth)}
     if bw >= length:
         raise ValueError("box_width must be below tank_length.")
-    across = [whole(c["tank_width"], l0)] if dim == 3 else []
+    across = [setting_length(c, "tank_width")] if dim == 3 else []
     height = depth + 2 * bh + 4 * l0
     x0 = whole(0.5 * (length - bw), l0)
     draft = _release_draft(c, bw, bh, depth)
@@ -381,11 +382,11 @@ def _stacked_blocks(c, l0: float, length: float) -> tuple[list, float, dict]:
     on the lowest (`base_width` wide, the others centred on it) or in a row with
     `gap` between them, from 0.1 of the floor (at most 0.5 m) along it."""
     count = int(c["blocks"])
-    a = whole(c["block_size"], l0)
-    tall = a if c["block_height"] is None else whole(c["block_height"], l0)
-    gap = whole(c["gap"], l0) if c["gap"] > 0 else 0.0
+    a = setting_length(c, "block_size")
+    tall = a if c["block_height"] is None else setting_length(c, "block_height")
+    gap = setting_length(c, "gap") if c["gap"] > 0 else 0.0
     x0 = whole(min(0.5, 0.1 * length), l0)
-    base = a if c["base_width"] is None else whole(c["base_width"], l0)
+    base = a if c["base_width"] is None else setting_length(c, "base_width")
     widths = [a] * count
     if c["layout"] == "stack":
         widths[0] = base
@@ -589,9 +590,9 @@ def friction_tilt(**overrides) -> Case:
     """
     c = resolve("friction_tilt", FRICTION_TILT, overrides)
     l0, dim = c["spacing"], int(c["dim"])
-    a = whole(c["block_size"], l0)
-    tall = a if c["block_height"] is None else whole(c["block_height"], l0)
-    length = whole(c["floor_length"], l0)
+    a = setting_length(c, "block_size")
+    tall = a if c["block_height"] is None else setting_length(c, "block_height")
+    length = setting_length(c, "floor_length")
     if length < a + 2 * l0:
         raise ValueError("floor_length must exceed block_size by at least 2 spacings.")
     if c["dt"] == "adaptive" and c["dt_max"] is None:
@@ -811,7 +812,7 @@ def block_stack(**overrides) -> Case:
     l0, dim = c["spacing"], int(c["dim"])
     if dim != 2:
         raise ValueError("block_stack is 2-D (dim=2).")
-    length = whole(c["floor_length"], l0)
+    length = setting_length(c, "floor_length")
     blocks, top, sizes = _stacked_blocks(c, l0, length)
     box = np.concatenate(blocks)
     body = np.concatenate([np.full(len(b), k) for k, b in enumerate(blocks)])
@@ -896,8 +897,8 @@ def block_impact(**overrides) -> Case:
     """
     c = resolve("block_impact", BLOCK_IMPACT, overrides)
     l0, dim = c["spacing"], int(c["dim"])
-    a = whole(c["block_size"], l0)
-    gap = whole(c["gap"], l0) if c["gap"] > 0 else 0.0
+    a = setting_length(c, "block_size")
+    gap = setting_length(c, "gap") if c["gap"] > 0 else 0.0
     if c["dt"] == "adaptive" and c["dt_max"] is None:
         if not c["velocity"] != 0:
             raise ValueError(
@@ -1036,10 +1037,10 @@ def dam_break_box(**overrides) -> Case:
     l0 = c["spacing"]
     if int(c["dim"]) != 2:
         raise ValueError("dam_break_box is 2-D only (dim=2).")
-    a, h = whole(c["column_width"], l0), whole(c["column_height"], l0)
-    length, height = whole(c["tank_length"], l0), whole(c["tank_height"], l0)
-    bw, bh = whole(c["box_width"], l0), whole(c["box_height"], l0)
-    x0 = whole(c["box_x"], l0)
+    a, h = setting_length(c, "column_width"), setting_length(c, "column_height")
+    length, height = setting_length(c, "tank_length"), setting_length(c, "tank_height")
+    bw, bh = setting_length(c, "box_width"), setting_length(c, "box_height")
+    x0 = setting_length(c, "box_x")
     if not (a < x0 and x0 + bw < length):
         raise ValueError(
             f"The box must lie between the column and the right wall: box_x "

@@ -663,6 +663,24 @@ def whole(value: float, spacing: float) -> float:
     return max(1, round(count)) * spacing
 
 
+def setting_length(c: dict, key: str) -> float:
+    """The length setting `key` as the scene builds it: a whole number of spacings.
+
+    Raises:
+        ValueError: naming `key` and `spacing`, where the setting is under half a
+            spacing (it would be built one spacing long, over twice what was
+            asked), or as `whole`.
+    """
+    value, spacing = float(c[key]), c["spacing"]
+    if value < 0.5 * spacing:
+        raise ValueError(
+            f"{key}={value:g} m is under half the particle spacing ({spacing:g} m), "
+            f"so the scene would build it one spacing long: refine `spacing` (to "
+            f"{2 * value:g} m or less) or lengthen `{key}`."
+        )
+    return whole(value, spacing)
+
+
 def velocity_scale(height: float, gravity: float) -> float:
     """sqrt(2 g h), the free-fall speed over `height` (0 without gravity)."""
     return math.sqrt(2.0 * max(gravity, 0.0) * height)

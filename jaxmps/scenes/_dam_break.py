@@ -5,9 +5,9 @@ from ._common import (
     check_gauge,
     nearest_wall,
     resolve,
+    setting_length,
     tank_case,
     velocity_scale,
-    whole,
 )
 from ._probes import FrontPosition, PressureAt, StripLevel, WaterLevel
 
@@ -36,15 +36,15 @@ def dam_break(**overrides) -> Case:
     """
     c = resolve("dam_break", DEFAULTS, overrides)
     l0, dim = c["spacing"], int(c["dim"])
-    a, h = whole(c["column_width"], l0), whole(c["column_height"], l0)
-    length, height = whole(c["tank_length"], l0), whole(c["tank_height"], l0)
+    a, h = setting_length(c, "column_width"), setting_length(c, "column_height")
+    length, height = setting_length(c, "tank_length"), setting_length(c, "tank_height")
     if a >= length or h >= height:
         raise ValueError(
             "The column must fit in the tank: column_width < tank_length and "
             "column_height < tank_height."
         )
     check_gauge(overrides, c, length)
-    across = [whole(c["tank_width"], l0)] if dim == 3 else []
+    across = [setting_length(c, "tank_width")] if dim == 3 else []
     scene, params, state, extra = tank_case(
         c,
         [0.0] * dim,

@@ -17,6 +17,7 @@ from ._common import (
     case_params,
     case_scene,
     resolve,
+    setting_length,
     velocity_scale,
     whole,
 )
@@ -86,7 +87,7 @@ def elastic_cantilever(**overrides) -> Case:
     """
     c = resolve("elastic_cantilever", ELASTIC_CANTILEVER, overrides)
     l0, dim = c["spacing"], int(c["dim"])
-    length, t = whole(c["length"], l0), whole(c["thickness"], l0)
+    length, t = setting_length(c, "length"), setting_length(c, "thickness")
     clamp = boundary_layers(c) * l0
     lower = [-clamp] + [0.0] * (dim - 1)
     upper = [length] + [t] * (dim - 1)
@@ -176,7 +177,7 @@ def elastic_bar(**overrides) -> Case:
         c = {**c, "dt_max": c["t_end"]}  # one step: a static evaluation
     if int(c["dim"]) != 2:
         raise ValueError("elastic_bar is a 2-D case (seed 000 §3.2.1); set dim=2.")
-    width, length = whole(c["width"], l0), whole(c["length"], l0)
+    width, length = setting_length(c, "width"), setting_length(c, "length")
     position = geometry.block([0.0, 0.0], [width, length], l0)
     kind = np.full(len(position), int(Kind.FLUID), np.int32)
     domain = (
@@ -271,8 +272,8 @@ def elastic_plate(**overrides) -> Case:
     c = _wetted_step(c)
     if int(c["dim"]) != 2:
         raise ValueError("elastic_plate is a 2-D case; set dim=2.")
-    span, t = whole(c["span"], l0), whole(c["thickness"], l0)
-    depth = whole(c["depth"], l0) if c["water"] else 0.0
+    span, t = setting_length(c, "span"), setting_length(c, "thickness")
+    depth = setting_length(c, "depth") if c["water"] else 0.0
     layers = boundary_layers(c)
     pad = layers * l0
     height = whole(1.3 * depth, l0) if depth > 0 else 4 * l0
@@ -376,8 +377,11 @@ def elastic_gate(**overrides) -> Case:
     if int(c["dim"]) != 2:
         raise ValueError("elastic_gate is a 2-D case (the experiment's); set dim=2.")
     c = _wetted_step(c)
-    width, height = whole(c["column_width"], l0), whole(c["column_height"], l0)
-    length, t = whole(c["length"], l0), whole(c["thickness"], l0)
+    width, height = (
+        setting_length(c, "column_width"),
+        setting_length(c, "column_height"),
+    )
+    length, t = setting_length(c, "length"), setting_length(c, "thickness")
     if round(t / l0) < 2:
         raise ValueError(
             f"spacing={l0:g} m leaves {round(t / l0)} particle through the gate's "
@@ -385,7 +389,7 @@ def elastic_gate(**overrides) -> Case:
             "bend as a beam: lower spacing to thickness / 2 or less."
         )
     gap = round(c["gap"] / l0) * l0
-    floor = whole(c["floor_length"], l0)
+    floor = setting_length(c, "floor_length")
     layers = boundary_layers(c)
     clamp = layers * l0
     top = max(whole(1.2 * height, l0), gap + length + clamp + l0)

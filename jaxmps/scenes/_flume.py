@@ -13,7 +13,13 @@ from .._types import Kind
 from ..fluid import Inflow, InflowParams, Outflow
 from ._bodies import block_probes, coulomb
 from ._case import Case
-from ._common import boundary_layers, case_params, case_scene, resolve, whole
+from ._common import (
+    boundary_layers,
+    case_params,
+    case_scene,
+    resolve,
+    setting_length,
+)
 from ._flume_bed import (
     bed_particles,
     bed_profile,
@@ -153,9 +159,9 @@ def flume(**overrides) -> Case:
     if int(c["dim"]) != 2:
         raise ValueError("flume is 2-D only for now (dim=2).")
     l0 = c["spacing"]
-    h_in = whole(c["inflow_depth"], l0)
-    length = whole(c["bed_length"], l0)
-    weir = whole(c["weir_height"], l0) if c["weir_height"] > 0 else 0.0
+    h_in = setting_length(c, "inflow_depth")
+    length = setting_length(c, "bed_length")
+    weir = setting_length(c, "weir_height") if c["weir_height"] > 0 else 0.0
     c = _rounded(c, l0)
     check_lengths(c, length)
     u_in = float(c["discharge"]) / h_in
@@ -170,7 +176,7 @@ def flume(**overrides) -> Case:
     )
     blocks, body = _blocks(c, profile, l0, block_sink(c, profile, stretch))
     grains = bed_grains(profile, stretch, l0)
-    tail = None if c["tail_depth"] is None else end + whole(c["tail_depth"], l0)
+    tail = None if c["tail_depth"] is None else end + setting_length(c, "tail_depth")
     fluid, speed = _water(c, profile, length, h_in, tail, (blocks, grains))
     position = np.concatenate([fluid, blocks, grains, inflow_pts, upstream, bed])
     n_fluid, n_solid = len(fluid), len(blocks) + len(grains)
@@ -301,13 +307,13 @@ def _rounded(c: dict, l0: float) -> dict:
     """The bed's lengths as whole spacings (block sizes at least one)."""
     out = {key: optional(c[key], l0) for key in _PIECES}
     if c["crest_length"] is not None:
-        out["crest_length"] = whole(c["crest_length"], l0)
+        out["crest_length"] = setting_length(c, "crest_length")
     for key in ("scour_centre", "movable_start"):
         if c[key] is not None:
-            out[key] = whole(c[key], l0)
+            out[key] = setting_length(c, key)
     if c["block_rows"]:
-        out["block_length"] = whole(c["block_length"], l0)
-        out["block_height"] = whole(c["block_height"], l0)
+        out["block_length"] = setting_length(c, "block_length")
+        out["block_height"] = setting_length(c, "block_height")
     return {**c, **out}
 
 

@@ -15,6 +15,7 @@ from ._common import (
     case_params,
     case_scene,
     resolve,
+    setting_length,
     velocity_scale,
     whole,
 )
@@ -120,7 +121,7 @@ def grain_settling(**overrides) -> Case:
     c = resolve("grain_settling", GRAIN_SETTLING, overrides)
     l0, dim = c["spacing"], int(c["dim"])
     d = l0 if c["grain_diameter"] is None else c["grain_diameter"]
-    width, depth = whole(c["width"], l0), whole(c["depth"], l0)
+    width, depth = setting_length(c, "width"), setting_length(c, "depth")
     release = 3.0 * d if c["release_depth"] is None else c["release_depth"]
     if not d <= release <= depth - d:
         raise ValueError(
@@ -199,7 +200,7 @@ def grain_drop(**overrides) -> Case:
     c = resolve("grain_drop", GRAIN_DROP, overrides)
     l0, dim = c["spacing"], int(c["dim"])
     d = l0 if c["grain_diameter"] is None else c["grain_diameter"]
-    width = whole(c["width"], l0)
+    width = setting_length(c, "width")
     if width < 2 * l0:
         raise ValueError("width must hold two floor particles: raise `width`.")
     top = whole(c["drop_height"] + 3 * d, l0)
@@ -278,7 +279,7 @@ def granular_collapse(**overrides) -> Case:
         raise ValueError("granular_collapse is 2-D; give dim=2.")
     d = l0 if c["grain_diameter"] is None else c["grain_diameter"]
     width, height = c["column_width"], c["column_height"]
-    floor = whole(c["floor_length"], l0)
+    floor = setting_length(c, "floor_length")
     if not floor > width + d:
         raise ValueError(
             f"floor_length={floor:g} m must exceed column_width={width:g} m: the "

@@ -1,7 +1,7 @@
 """Still water in an open tank: the hydrostatic pressure test (seed 000 §10.2 #4)."""
 
 from ._case import Case
-from ._common import resolve, tank_case, velocity_scale, whole
+from ._common import resolve, setting_length, tank_case, velocity_scale, whole
 from ._probes import FluidPressureNear, PressureAt, WaterLevel
 
 DEFAULTS = {"width": 0.2, "depth": 0.2, "spacing": 0.01, "dim": 2, "t_end": 1.0}
@@ -15,7 +15,7 @@ def hydrostatic(**overrides) -> Case:
     """
     c = resolve("hydrostatic", DEFAULTS, overrides)
     l0, dim = c["spacing"], int(c["dim"])
-    width, depth = whole(c["width"], l0), whole(c["depth"], l0)
+    width, depth = setting_length(c, "width"), setting_length(c, "depth")
     height = whole(1.25 * depth, l0)
     horizontal = [width] * (dim - 1)
     scene, params, state, extra = tank_case(

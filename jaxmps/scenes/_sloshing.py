@@ -16,6 +16,7 @@ from ._common import (
     case_params,
     case_scene,
     resolve,
+    setting_length,
     velocity_scale,
     whole,
 )
@@ -79,8 +80,8 @@ def standing_wave(**overrides) -> Case:
         raise ValueError("standing_wave is 2-D (dim=2).")
     m = int(c["mode_number"])
     l0 = c["spacing"]
-    length, depth = whole(c["tank_length"], l0), whole(c["depth"], l0)
-    height = whole(c["tank_height"], l0)
+    length, depth = setting_length(c, "tank_length"), setting_length(c, "depth")
+    height = setting_length(c, "tank_height")
     amp = float(c["amplitude"])
     if not 0 <= amp < min(depth, height - depth):
         raise ValueError(
@@ -215,13 +216,13 @@ def sloshing_tank(**overrides) -> Case:
     if int(c["dim"]) != 2:
         raise ValueError("sloshing_tank is 2-D (dim=2).")
     l0 = c["spacing"]
-    depth, height = whole(c["depth"], l0), whole(c["tank_height"], l0)
+    depth, height = setting_length(c, "depth"), setting_length(c, "tank_height")
     if not float(c["settle"]) >= 0:
         raise ValueError("settle must be >= 0 s.")
     strip = 3 * l0
     law = Harmonic(start=float(c["settle"]))
     if not c["slope"]:
-        length = whole(c["tank_length"], l0)
+        length = setting_length(c, "tank_length")
         fluid = geometry.block([0.0, 0.0], [length, depth], l0)
         walls, wall_kind = _open_tank(c, length, height)
         scene, params, state, fluid, frame, plate_centre = _shaken(
@@ -246,7 +247,7 @@ def sloshing_tank(**overrides) -> Case:
             ],
         }
     else:
-        s, base = float(c["slope"]), whole(c["bottom_width"], l0)
+        s, base = float(c["slope"]), setting_length(c, "bottom_width")
         if not s > 0:
             raise ValueError("slope must be positive (horizontal run per unit rise).")
         length = whole(base + s * height, l0)
@@ -311,7 +312,7 @@ def _plates(c: dict, length: float, depth: float, walls, slope=None):
             "The sloped tank takes plates on its vertical (left) wall only: set "
             "plate_walls=left."
         )
-    span = whole(c["plate_length"], l0)
+    span = setting_length(c, "plate_length")
     centre = depth - float(c["plate_depth"])
     row = math.ceil(centre / l0 - 1.0 - 1e-6)  # middle layer at (row + 1/2) l0
     bottom, top = (row - 1) * l0, (row + 2) * l0

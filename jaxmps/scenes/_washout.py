@@ -8,7 +8,7 @@ import jax.numpy as jnp
 
 from .._params import Params
 from ._case import Case
-from ._common import resolve, whole
+from ._common import resolve, setting_length
 from ._flume import DEFAULTS as _FLUME
 from ._flume import flume
 
@@ -108,7 +108,10 @@ def block_washout(**overrides) -> Case:
     if c["inflow_depth"] is None:
         c["inflow_depth"] = (c["discharge"] ** 2 / c["gravity"]) ** (1 / 3)
     l0 = c["spacing"]
-    length, height = whole(c["block_length"], l0), whole(c["block_height"], l0)
+    length, height = (
+        setting_length(c, "block_length"),
+        setting_length(c, "block_height"),
+    )
     gap = round(c["block_gap"] / l0) * l0
     if c["block_density"] is None:
         c["block_density"] = _BLOCK_MASS_PER_WIDTH / (length * height)

@@ -16,6 +16,7 @@ from ._common import (
     case_scene,
     check_gauge,
     resolve,
+    setting_length,
     whole,
 )
 from ._probes import StripLevel
@@ -102,7 +103,7 @@ def wave_tank(**overrides) -> Case:
     if int(c["dim"]) != 2:
         raise ValueError("wave_tank is 2-D only for now (dim=2).")
     l0 = c["spacing"]
-    length, depth = whole(c["tank_length"], l0), whole(c["depth"], l0)
+    length, depth = setting_length(c, "tank_length"), setting_length(c, "depth")
     check_gauge(overrides, c, length)
     period = float(c["wave_period"])
     k = _wave_number(period, depth, c["gravity"], l0)
