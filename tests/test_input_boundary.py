@@ -102,7 +102,7 @@ def test_a_box_off_its_reach_names_box_x():
     [
         ("hydrostatic", dict(spacing=1.0), "width"),
         ("floating_box", dict(spacing=0.02, box_height=0.009), "box_height"),
-        ("block_stack", dict(spacing=0.1, gap=0.04), "gap"),
+        ("block_stack", dict(spacing=0.1, block_size=0.04), "block_size"),
         ("dam_break", dict(spacing=0.05, column_width=0.02), "column_width"),
     ],
 )

@@ -384,7 +384,9 @@ def _stacked_blocks(c, l0: float, length: float) -> tuple[list, float, dict]:
     count = int(c["blocks"])
     a = setting_length(c, "block_size")
     tall = a if c["block_height"] is None else setting_length(c, "block_height")
-    gap = setting_length(c, "gap") if c["gap"] > 0 else 0.0
+    # A clearance: under half a spacing it opens to one (the least the lattice
+    # holds apart), not refused like a body's size.
+    gap = whole(c["gap"], l0) if c["gap"] > 0 else 0.0
     x0 = whole(min(0.5, 0.1 * length), l0)
     base = a if c["base_width"] is None else setting_length(c, "base_width")
     widths = [a] * count
@@ -898,7 +900,9 @@ def block_impact(**overrides) -> Case:
     c = resolve("block_impact", BLOCK_IMPACT, overrides)
     l0, dim = c["spacing"], int(c["dim"])
     a = setting_length(c, "block_size")
-    gap = setting_length(c, "gap") if c["gap"] > 0 else 0.0
+    # A clearance: under half a spacing it opens to one (the least the lattice
+    # holds apart), not refused like a body's size.
+    gap = whole(c["gap"], l0) if c["gap"] > 0 else 0.0
     if c["dt"] == "adaptive" and c["dt_max"] is None:
         if not c["velocity"] != 0:
             raise ValueError(
