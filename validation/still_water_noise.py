@@ -95,6 +95,7 @@ def run(
     wall = time.perf_counter() - start
     t = np.asarray(out.saved["time"])
     p = np.asarray(out.saved["pressure_bottom"])[t >= 0.5]
+    slow, fast = split(p)
     return dict(
         width=width,
         depth=depth,
@@ -105,8 +106,8 @@ def run(
         seed=seed,
         mean_error=float(p.mean() / reference - 1),
         noise=float(p.std() / reference),
-        slow=split(p)[0] / reference,
-        fast=split(p)[1] / reference,
+        slow=slow / reference,
+        fast=fast / reference,
         steps=int(np.asarray(out.steps.accepted).sum()),
         result="ok" if out.result == jaxmps.Result.successful else str(out.result),
         wall_s=wall,
@@ -183,7 +184,7 @@ def markdown(out: dict, args) -> str:
         return (
             f"{100 * mean:.2f} % +- {100 * spread:.2f}"
             if several
-            else (f"{100 * mean:.2f} %")
+            else f"{100 * mean:.2f} %"
         )
 
     lines = [
