@@ -337,8 +337,8 @@ class ElasticBodies(AbstractBodyModel):
     # 0.29-0.37 (0.48), while in c_p it moves from
     # 0.5-0.6 to 1.5-1.9: the fastest modes are shear and spin ones (the pressure
     # of a checkerboard mode is nil). In 3-D 0.34-0.41, 0.36-0.39 and 0.29-0.35;
-    # at nu = 0.3 and E = 1e6 / 1e7 / 1e8 Pa under one gravity 0.35-0.40 each. `add_elastic_bodies` takes half of it by
-    # default.
+    # at nu = 0.3 and E = 1e6 / 1e7 / 1e8 Pa under one gravity 0.35-0.40 each.
+    # `add_elastic_bodies` takes half of it by default.
     courant: float = 0.25
     # Choice: the surface particles' shear term corrected (`corrective_matrices`)
     # by default. Without it (the seed's model) a particle on a flat surface reads
