@@ -17,9 +17,9 @@ w^2 (m + a33(w)) = rho g B and the radiation damping ratio b33 / (2 (m + a33) w_
 at the same depth.
 
 Run: python validation/heave_decay.py [--section box|ship] [--spacings 0.02 0.01]
-[--merge] [--scheme standard_ds] (writes results/heave_decay_cpu.{json,md}, or
-heave_decay_ship_cpu.*; --merge keeps the rows of the existing file at the spacings
-not re-measured)
+[--merge] [--scheme standard_ds] [--variable-density] [--out NAME]
+(writes results/heave_decay_cpu.{json,md}, or heave_decay_ship_cpu.*; --merge
+keeps the rows of the existing file at the spacings not re-measured)
 """
 
 import argparse
@@ -127,9 +127,26 @@ def rollout(case, t_end):
     return {k: np.asarray(v) for k, v in out.saved.items()}, wall, out.result
 
 
-def measure(section, spacing, tank, depth, offset, t_end, fit, scheme="standard"):
+def measure(
+    section,
+    spacing,
+    tank,
+    depth,
+    offset,
+    t_end,
+    fit,
+    scheme="standard",
+    variable_density=False,
+):
     case, mass, draft = _section_case(
-        section, spacing, tank, depth, offset, t_end, scheme=scheme
+        section,
+        spacing,
+        tank,
+        depth,
+        offset,
+        t_end,
+        scheme=scheme,
+        variable_density=variable_density,
     )
     s, wall, result = rollout(case, t_end)
     t, y = s["time"], s["box_y"]
@@ -151,6 +168,7 @@ def measure(section, spacing, tank, depth, offset, t_end, fit, scheme="standard"
     return dict(
         section=section,
         scheme=scheme,
+        variable_density=variable_density,
         mass=mass,
         draft=draft,
         period_measured=measured,
@@ -195,7 +213,9 @@ def markdown(rows, info, args):
         f"Machine: {info.get('cpu_model', '?')}; float64; `validation/heave_decay.py"
         f" --section {args.section}` (tank {args.tank} m, depth {args.depth} m,"
         f" released {args.offset} m below the Archimedes draft, fit over the first"
-        f" {args.fit} s, scheme {args.scheme}). Theory: the rectangle of the same"
+        f" {args.fit} s, scheme {args.scheme}"
+        + (", `variable_density`" if args.variable_density else "")
+        + "). Theory: the rectangle of the same"
         " beam and draft"
         " (`_heave_theory.py`)"
         + (
@@ -325,6 +345,11 @@ def main():
     parser.add_argument("--offset", type=float, default=0.01)
     add_decay_arguments(parser, tank=3.0, depth=0.4, t_end=3.0, fit=2.5)
     parser.add_argument("--scheme", default="standard", help="a scene's scheme setting")
+    parser.add_argument(
+        "--variable-density",
+        action="store_true",
+        help="the PPE's pairs weighed by the bodies' density (`variable_density`)",
+    )
     parser.add_argument("--out", help="results file name (default: by section)")
     args = parser.parse_args()
     jax.config.update("jax_enable_x64", True)
@@ -339,6 +364,7 @@ def main():
         t_end=args.t_end,
         fit=args.fit,
         scheme=args.scheme,
+        variable_density=args.variable_density,
     )
     write_spacings(path, args, measure_row, markdown)
     rows = json.loads(path.with_suffix(".json").read_text())["rows"]

@@ -61,6 +61,13 @@ class SemiImplicit(AbstractPressureSolver):
         body_head: give the surface particles of bodies pressed like the fluid
             the surface head of their own density where they face up (True), or
             hold them at 0 (False, as the seed does).
+        variable_density: weigh each pair of the PPE by rho0 / rho_ij, rho_ij =
+            (rho_i + rho_j) / 2 of the densities the particles are advanced
+            with (`Coupling.density`: a body's own), so that the pressure solves
+            div(grad P / rho) = div(u*) / dt, which the correction
+            -dt grad P_i / rho_i then meets (False: every particle weighs as the
+            fluid in the PPE, as the seeds do). Pairs of the fluid alone keep
+            their weight exactly; a scene without bodies is unchanged.
     """
 
     needs_surface: ClassVar[bool] = True
@@ -117,6 +124,7 @@ class SemiImplicit(AbstractPressureSolver):
     # count gravity twice (the source already compresses the bottom rows by the
     # step's fall against the walls), hence u* - dt g in the source.
     dummy_head: bool = True
+    variable_density: bool = False
 
     def __check_init__(self):
         if self.rtol is not None and not 0 < self.rtol < 1:
@@ -210,6 +218,13 @@ class SemiImplicit(AbstractPressureSolver):
             reference_dt=inputs.reference_dt,
         )
         coefficient, factor = laplacian.coefficients(inputs.pairs, disc)
+        if self.variable_density and inputs.coupling is not None:
+            coefficient = _density_weighted(
+                inputs.pairs.weight if coefficient is None else coefficient,
+                inputs.pairs,
+                inputs.coupling.density,
+                params.density,
+            )
         source = -self.source(disc, sources) / factor
         head = self._dummy_head(params, inputs, coefficient)
         if head is not None:
@@ -238,6 +253,14 @@ class SemiImplicit(AbstractPressureSolver):
             converged=info.converged,
             unstable=jnp.asarray(False),
         )
+
+
+def _density_weighted(coefficient, pairs: Pairs, density, reference) -> Field:
+    """The pair coefficients c_ij times rho0 / rho_ij, rho_ij = (rho_i + rho_j) / 2
+    (symmetric, so the system stays symmetric positive definite)."""
+    density = jnp.broadcast_to(density, pairs.index.shape[:1])
+    mean = 0.5 * (density[:, None] + take_rows(density, pairs.index))
+    return coefficient * (reference / mean)
 
 
 def _facing_up(pairs: Pairs, carries: Mask, gravity) -> Field:

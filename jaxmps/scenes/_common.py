@@ -50,6 +50,7 @@ COMMON = {
     "max_iterations": SemiImplicit.max_iterations,
     "preconditioner": _preconditioner_name(SemiImplicit.preconditioner),
     "wall_pressure": Explicit.wall_pressure,
+    "variable_density": SemiImplicit.variable_density,
     "max_neighbours": None,
     "candidate_capacity": None,
     "courant": Adaptive.courant,
@@ -134,6 +135,12 @@ def resolve(name: str, specific: dict[str, Any], overrides: dict[str, Any]) -> d
             f"wall_pressure={config['wall_pressure']!r} is an option of the explicit "
             "solver (the semi-implicit one solves the walls' pressure); use "
             "solver=explicit."
+        )
+    if config["variable_density"] and config["solver"] != "semi_implicit":
+        raise ValueError(
+            "variable_density=True is an option of the semi-implicit solver's "
+            "pressure equation (the explicit solver's pressure is a state "
+            "equation); use solver=semi_implicit or leave variable_density off."
         )
     if config["scheme"] != "standard" and config["solver"] != "semi_implicit":
         raise ValueError(
@@ -505,6 +512,7 @@ def discretisation(config: dict) -> schemes.Scheme:
         rtol=config["rtol"],
         max_iterations=int(config["max_iterations"]),
         preconditioner=PRECONDITIONERS[config["preconditioner"]](),
+        variable_density=bool(config["variable_density"]),
     )
     if config["scheme"] == "high_accuracy":
         return schemes.high_accuracy(solver)
