@@ -5,6 +5,7 @@ import functools
 from typing import ClassVar
 
 import jax.numpy as jnp
+from jaxtyping import Array, Float
 
 from .._numerics import take_rows
 from .._params import Params
@@ -255,7 +256,9 @@ class SemiImplicit(AbstractPressureSolver):
         )
 
 
-def _density_weighted(coefficient, pairs: Pairs, density, reference) -> Field:
+def _density_weighted(
+    coefficient: Float[Array, "n k"], pairs: Pairs, density, reference
+) -> Float[Array, "n k"]:
     """The pair coefficients c_ij times rho0 / rho_ij, rho_ij = (rho_i + rho_j) / 2
     (symmetric, so the system stays symmetric positive definite)."""
     density = jnp.broadcast_to(density, pairs.index.shape[:1])
