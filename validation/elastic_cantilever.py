@@ -305,23 +305,15 @@ def substeps_for(target, youngs_modulus, nu, dt=1e-3, spacing=0.0025):
     return max(1, round(dt * np.sqrt(mu / 1000.0) / (spacing * target)))
 
 
-def _map_order(r):
+def _map_key(r, last="substeps"):
+    """A map row's case (dim, g, E, nu) and its `last` field: "substeps" names
+    the row (a re-run replaces it), "h_cs_l0" orders the table."""
     return (
         r.get("dim", 2),
         r.get("gravity", 0.981),
         r.get("youngs_modulus", 1e6),
         r["poisson_ratio"],
-        r["h_cs_l0"],
-    )
-
-
-def _map_key(r):
-    return (
-        r.get("dim", 2),
-        r.get("gravity", 0.981),
-        r.get("youngs_modulus", 1e6),
-        r["poisson_ratio"],
-        r["substeps"],
+        r[last],
     )
 
 
@@ -410,7 +402,7 @@ def markdown(rows, stability, info, large=()):
             " largest tip [mm] | EB static [mm] | stable | wall [s] | host |",
             "|---|---|---|---|---|---|---|---|---|---|---|---|",
         ]
-        for r in sorted(stability, key=_map_order):
+        for r in sorted(stability, key=lambda r: _map_key(r, "h_cs_l0")):
             tip = r.get("largest_tip")
             static = r.get("static_theory")
             wall = r.get("wall_s")
