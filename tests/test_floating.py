@@ -84,7 +84,7 @@ def test_a_very_light_box_stays_on_the_water_with_the_density_weighted_pressure(
     surface within 1.4 mm (0.14 l0) over 1.2 s. Without it every particle
     weighs as water in the PPE while the box's take -dt grad P / rho_body, 50x
     the correction the solve assumed: the same box was thrown 48 mm, 83 mm,
-    then out of the tank within 0.5 s (AMD and Intel hosts, as here)."""
+    then out of the tank within 0.5 s (Intel model 167 host)."""
     case = jaxmps.scenes.floating_box(
         density_ratio=0.02, spacing=0.01, variable_density=True
     )
