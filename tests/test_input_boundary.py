@@ -118,6 +118,27 @@ def test_a_length_of_half_a_spacing_or_more_is_built_in_whole_spacings():
     assert case.config["depth"] == pytest.approx(0.05)  # 0.6 spacings: one
 
 
+@pytest.mark.parametrize(
+    "scene, settings",
+    [
+        ("friction_tilt", dict(block_size=0.3, spacing=0.1)),
+        ("block_impact", dict(block_size=0.3, spacing=0.1)),
+        ("block_stack", dict(block_size=0.3, block_height=0.3, spacing=0.05)),
+    ],
+)
+def test_a_block_of_any_size_gets_a_tank_of_whole_spacings(scene, settings):
+    """The dry block scenes make room above their blocks of 1.2 times their top;
+    for a 0.3 m block that was not a whole number of spacings, and the build
+    failed inside the lattice generator without naming a setting."""
+    case = jaxmps.scenes.build(scene, **settings)
+    kind = np.asarray(case.state.kind)
+    wall = np.asarray(case.state.position)[
+        (kind == int(jaxmps.Kind.WALL)) | (kind == int(jaxmps.Kind.DUMMY))
+    ]
+    rows = wall[:, 1] / settings["spacing"] - 0.5  # the lattice's rows: whole
+    np.testing.assert_allclose(rows, np.round(rows), atol=1e-9)
+
+
 def test_gravity_zero_runs_with_a_given_dt():
     case = jaxmps.scenes.hydrostatic(spacing=0.05, gravity=0.0, dt=1e-3)
     assert float(case.params.dt) == pytest.approx(1e-3)

@@ -33,6 +33,7 @@ from ._common import (
     setting_length,
     velocity_scale,
     whole,
+    whole_above,
 )
 from ._probes import (
     BodyPressure,
@@ -605,7 +606,7 @@ def friction_tilt(**overrides) -> Case:
     box = geometry.block(
         lower_box, [x0 + a] + ([2 * l0 + a] if dim == 3 else []) + [tall], l0
     )
-    height = 1.2 * tall
+    height = whole_above(1.2 * tall, l0)
     friction = coulomb(c)
     fluid = np.zeros((0, dim))
     depth = float(c["water_depth"])
@@ -818,7 +819,7 @@ def block_stack(**overrides) -> Case:
     blocks, top, sizes = _stacked_blocks(c, l0, length)
     box = np.concatenate(blocks)
     body = np.concatenate([np.full(len(b), k) for k, b in enumerate(blocks)])
-    height = 1.2 * top
+    height = whole_above(1.2 * top, l0)
     fluid = np.zeros((0, dim))
     if c["water_depth"] > 0:
         fluid, height = _tilted_water(c, box, length, "the blocks", top)
@@ -916,7 +917,7 @@ def block_impact(**overrides) -> Case:
     box = geometry.block(
         [side] * (dim - 1) + [gap], [side + a] * (dim - 1) + [gap + a], l0
     )
-    height = gap + 1.2 * a
+    height = whole_above(gap + 1.2 * a, l0)
     walls, wall_kind = geometry.tank(
         [0.0] * dim, [length] + across + [height], l0, layers=boundary_layers(c)
     )

@@ -655,6 +655,15 @@ def check_gauge(overrides: dict, c: dict, length: float) -> None:
         )
 
 
+def whole_above(value: float, spacing: float) -> float:
+    """A length rounded up to a whole number of spacings (itself where it is
+    one): room above a body, whatever its size."""
+    count = value / spacing
+    if abs(count - round(count)) < 1e-9 * max(1.0, abs(count)):
+        return value
+    return math.ceil(count) * spacing
+
+
 def whole(value: float, spacing: float) -> float:
     """Round a length to a whole number of spacings (at least one).
 
