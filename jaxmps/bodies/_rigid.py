@@ -4,6 +4,7 @@ seed 002 §4): the passively moving solid of Koshizuka et al."""
 import dataclasses
 import functools
 import itertools
+import math
 from collections.abc import Callable
 from typing import ClassVar
 
@@ -518,22 +519,22 @@ class RigidBodies(AbstractBodyModel):
         `_wall_surface`), and the force
             F_i = max(k (l0 - h_i) - c v_n, 0) n_i   where h_i < l0,
         v_n the normal velocity of i's rigid motion at step k relative to the
-        partners' mean. Between two bodies, each pair (i, j) closer than l0
-        pushes along the pair, max(k (l0 - r_ij) - c v_n, 0) n_ij, on i and
-        back on j, counted once (from the body of lower index): contact between
-        bodies keeps momentum and angular momentum.
+        partners' mean. Between two bodies the same force acts on each particle
+        i of the body of lower index, the other body's particles its surface
+        (their faces and i's own, in the bodies' frames: `_pair_gaps`), and
+        back on the partners closer than l0 at the pairs' middles: contact
+        between bodies keeps momentum and angular momentum.
 
         # Choice: the pressure carries a resting body (its particles sit l0 from the
         # wall), but a body's edge particles are free-surface particles with P = 0,
         # so the pressure's centre never reaches the edge a tipping body turns on:
         # a cube on a slope toppled at tan(theta) = 0.76 (friction torque on). This
-        # force acts at the edge. Against walls it acts along the surface normal,
-        # not along each pair: pair forces against a wall's particles make a
-        # lattice of bumps that slowed a sliding block by 12-40 %. Between bodies
-        # it stays central: a gap along the mean normal of a small body's
-        # particles, whose corners point diagonally, pushed resting blocks apart
-        # (its bumps slow a block sliding on another, 19-23 % in 0.5 s at
-        # l0 = 0.05 m). The stiffness is
+        # force acts at the edge. It acts along the surface normal, not along
+        # each pair: pair forces against a wall's particles make a lattice of
+        # bumps that slowed a sliding block by 12-40 %, and between bodies
+        # 12-22 % in 0.5 s (see `_push_between_bodies`). A gap along the mean
+        # normal of a small body's particles, whose corners point diagonally,
+        # pushed resting blocks apart: hence the faces. The stiffness is
         # tied to the step, not to a material: k = kappa m_c / dt^2 with m_c = M /
         # (the body's particles in contact), so a body pressed along its whole
         # face oscillates at omega dt = sqrt(kappa),
@@ -558,15 +559,20 @@ class RigidBodies(AbstractBodyModel):
             & (pairs.distance < self.contact_distance * l0)
         )
         on_wall = near & take_rows(wall, pairs.index)
-        # between bodies: along each pair closer than l0 (central), once per
-        # contact (from the body of lower index), the partner pushed back
-        pressed = near & (partner_body > body[:, None]) & (pairs.distance < l0)
-        if self.count < 2:  # no pair of bodies: nothing to compute
-            pressed = jnp.zeros_like(near)
         velocity = jnp.where(member[:, None], rigid_k, state.velocity)
         normal, gap, v_wall = _wall_surface(
             on_wall, pairs, outward, velocity, l0, round_partners(state, pairs)
         )
+        # between bodies: each particle of the lower-index body against the
+        # particles of one higher-index body (the highest it touches)
+        other = jnp.max(jnp.where(near, partner_body, -1), axis=1)
+        facing_body = near & (partner_body > body[:, None])
+        facing_body = facing_body & (partner_body == other[:, None])
+        if self.count < 2:  # no pair of bodies: nothing to compute
+            facing_body = jnp.zeros_like(near)
+        faces = _body_faces(state, outward)
+        gaps, _, _ = _pair_gaps(facing_body, pairs, faces, l0, own=True)
+        pressed = facing_body & (gaps < l0)
         count = body_sum(
             ((gap < l0) | jnp.any(pressed, axis=1) | _partnered(pressed, pairs)).astype(
                 mass.dtype
@@ -583,7 +589,7 @@ class RigidBodies(AbstractBodyModel):
             zero = jnp.zeros_like(force)
             return force, zero, Exchange(zero, jnp.zeros_like(rot.cross(zero, zero)))
         own, exchange = _push_between_bodies(
-            pressed, pairs, share, velocity, l0, magnitude
+            facing_body, pairs, faces, share, velocity, l0, magnitude
         )
         return force, own, exchange
 
@@ -1014,6 +1020,9 @@ def _partner_velocity(close, pairs, velocity):
 # of the partner's (lattice) normal: cos 41 degrees, short of the 45 degrees of a
 # flat wall's diagonal neighbours and of an edge particle beside the particle.
 _FACING = 0.75
+# Between bodies the plane's gap holds fully within 30 degrees of the normal
+# (beyond the 26.6 degrees of a flat face's nearest partner on the lattice).
+_FACED = math.cos(math.radians(30.0))
 
 
 def _contact_magnitude(kappa, zeta, dt, m_c, depth, v_n):
@@ -1023,30 +1032,121 @@ def _contact_magnitude(kappa, zeta, dt, m_c, depth, v_n):
     return jnp.maximum(spring - 2 * zeta * jnp.sqrt(kappa) * m_c / dt * v_n, 0)
 
 
-def _push_between_bodies(pressed, pairs, share, velocity, l0, magnitude):
+def _push_between_bodies(close, pairs, faces, share, velocity, l0, magnitude):
     """The contact force between bodies on the particles of the lower-index body
-    of each `pressed` pair (central, along the pair, at the pair's reduced
-    contact mass), and that exchange with the partners' reactions."""
-    theirs = take_rows(share, pairs.index)
-    m_c = share[:, None] * theirs / jnp.maximum(share[:, None] + theirs, 1e-300)
-    distance = jnp.where(pressed, pairs.distance, l0)
-    v_n = (
-        -sum(
-            (velocity[:, a, None] - take_rows(velocity[:, a], pairs.index)) * o
-            for a, o in enumerate(pairs.offset)
-        )
-        / distance
+    of each contact (`close`: its partners in the other body), and that exchange
+    with the partners' reactions, shared among the partners closer than l0 and
+    acting at the pairs' middles.
+
+    The other body is a surface to the particle, as a wall is (`_pair_gaps`):
+    each partner's gap is its distance from the plane of the flatter of the two
+    particles' faces, so that a flat face sliding on another meets no bumps of
+    the lattice.
+
+    # Choice: a push along each pair (central) made the lattice a washboard: a
+    # 0.5 x 0.25 m block sliding frictionless down another at l0 = 0.05 m
+    # (tan 0.6) hopped by 0.2 m/s, rocked at 1.5 rad/s and met a drag of
+    # 16 % of its drive, 0.88 of the distance in 0.5 s (0.78 with mu = 0.3).
+    """
+    gaps, direction, facing = _pair_gaps(close, pairs, faces, l0, own=True)
+    normal, gap = _contact_normal(close, gaps, direction, facing, l0)
+    pressed = close & (gaps < l0)
+    theirs = _mean_over(pressed, take_rows(share, pairs.index))
+    m_c = share * theirs / jnp.maximum(share + theirs, 1e-300)
+    v_n = jnp.sum(
+        (velocity - _partner_velocity(pressed, pairs, velocity)) * normal, axis=-1
     )
-    push = jnp.where(pressed, magnitude(m_c, l0 - distance, v_n), 0.0)
-    pair_force = [-push / distance * o for o in pairs.offset]  # on i, (n, k)
-    own = jnp.stack([jnp.sum(f, axis=1) for f in pair_force], axis=-1)
-    back = jax.ops.segment_sum(
-        -jnp.stack(pair_force, axis=-1).reshape(-1, velocity.shape[-1]),
-        pairs.index.reshape(-1),
-        own.shape[0] + 1,
-    )[: own.shape[0]]
-    # central pair forces: no moment about the pair's middle to add
-    return own, Exchange(total=own + back, moment=jnp.zeros_like(rot.cross(own, own)))
+    push = jnp.where(gap < l0, magnitude(m_c, l0 - gap, v_n), 0.0)
+    own = push[:, None] * normal
+    return own, _exchange(own, pressed, pairs)
+
+
+def _pair_gaps(close, pairs, faces, l0, round_partner=None, own=False):
+    """Per pair in `close`, the gap between particle i and its partner j, the
+    direction (unit, towards i) a push on i takes, and whether a face sets the
+    gap (else the distance does). `faces`: each particle's outward normal
+    snapped to a lattice direction (`_snap`, `_body_faces`).
+
+    A partner faces the particle where the particle lies within 41 degrees of
+    the partner's face normal; its gap is then the particle's distance from the
+    partner's plane, otherwise (an edge or corner beside the particle) their
+    distance. A partner in `round_partner` never faces: its gap is the
+    distance.
+
+    With `own` (two bodies meeting) the particle's own face counts alike, and
+    the larger of the two gaps is taken: a corner of j passing over i's flat
+    face is as far as the face says, not as the corner's diagonal plane would
+    put it. And the plane's gap fades into the distance between 30 and 41
+    degrees off the normal, so that a pair turning into a face's cone is not
+    pushed at once by a step of the gap (a rotating corner's step did work:
+    two free blocks spinning past each other gained 30 % of their energy).
+    """
+    dim = faces.shape[-1]
+    distance = jnp.where(close, pairs.distance, 2.0 * l0)
+    away = [-o / distance for o in pairs.offset]  # from the partner to i
+
+    def seen_from(normal):
+        """Gap, direction and facing as a face of normal `normal` (towards i)
+        sees the pair."""
+        plane = -sum(o * n for o, n in zip(pairs.offset, normal))
+        facing = close & (plane > _FACING * distance)
+        if round_partner is not None:
+            facing = facing & ~round_partner
+        if not own:
+            gap = jnp.where(facing, plane, distance)
+            return gap, [jnp.where(facing, n, u) for n, u in zip(normal, away)], facing
+        cosine = plane / distance
+        weight = jnp.where(
+            facing, jnp.clip((cosine - _FACING) / (_FACED - _FACING), 0.0, 1.0), 0.0
+        )
+        gap = distance - weight * (distance - plane)
+        return gap, [u + weight * (n - u) for n, u in zip(normal, away)], facing
+
+    theirs = [take_rows(faces[:, a], pairs.index) for a in range(dim)]
+    gaps, direction, facing = seen_from(theirs)
+    if own:
+        mine = [-faces[:, a, None] for a in range(dim)]  # i's face, towards i
+        gaps_i, direction_i, facing_i = seen_from(mine)
+        wider = gaps_i > gaps
+        direction = [jnp.where(wider, d_i, d) for d_i, d in zip(direction_i, direction)]
+        length = safe_norm(
+            jnp.stack(direction, -1).reshape(-1, dim), jnp.ones(distance.size, bool)
+        ).reshape(distance.shape)
+        direction = [d / length for d in direction]
+        facing = jnp.where(wider, facing_i, facing)
+        gaps = jnp.maximum(gaps, gaps_i)
+    return gaps, direction, facing
+
+
+def _body_faces(state: State, outward: Float[Array, "n d"]) -> Float[Array, "n d"]:
+    """Each particle's outward normal snapped to a lattice direction of its own
+    solid: a body's in its body frame (its particles were laid on a lattice
+    there), the walls' in the world's."""
+    dim = outward.shape[-1]
+    member = is_body(state)
+    index = jnp.where(member, state.rigid.body, 0)
+    rotation = rot.matrix(state.rigid.orientation, dim)[index]
+    local = _snap(jnp.einsum("nji,nj->ni", rotation, outward))
+    faces = jnp.einsum("nij,nj->ni", rotation, local)
+    return jnp.where(member[:, None], faces, _snap(outward))
+
+
+def _contact_normal(close, gaps, direction, facing, l0):
+    """A particle's contact normal and gap from its partners' (`_pair_gaps`):
+    the gap is the least; the normal is the mean of the directions of the
+    partners closer than l0 weighted by how much closer, or, where none is, of
+    the facing partners' directions."""
+    depth = jnp.where(close, jnp.maximum(l0 - gaps, 0.0), 0.0)
+    pressed = jnp.stack([jnp.sum(depth * d, axis=1) for d in direction], axis=-1)
+    faced = jnp.stack(
+        [jnp.sum(jnp.where(facing, d, 0.0), axis=1) for d in direction], axis=-1
+    )
+    normal_sum = jnp.where(jnp.any(depth > 0, axis=1)[:, None], pressed, faced)
+    ok = jnp.any(close, axis=1) & jnp.any(normal_sum != 0, axis=-1)
+    length = safe_norm(normal_sum, ok)
+    normal = jnp.where(ok[:, None], normal_sum / length[:, None], 0.0)
+    gap = jnp.where(ok, jnp.min(jnp.where(close, gaps, 2.0 * l0), axis=1), 2.0 * l0)
+    return normal, gap
 
 
 def _wall_surface(
@@ -1057,15 +1157,10 @@ def _wall_surface(
     partners' mean velocity.
 
     Each partner's outward normal is snapped to the nearest lattice direction
-    (the axes and diagonals). A partner faces the particle where the particle
-    lies within 41 degrees of that normal; its gap is then the particle's
-    distance from the partner's plane, otherwise (an edge or corner beside the
-    particle) their distance. A partner in `round_partner` (a grain attached to
-    the bed: a sphere, off the lattice) never faces: its gap is the distance.
-    The gap is the least over the partners; the normal is the mean of the
-    directions of those closer than l0 (facing: the partner's normal; else from
-    the partner to the particle) weighted by how much closer, or, where none
-    is, of the facing partners' normals.
+    (the axes and diagonals) and the partners' gaps taken from their faces
+    (`_pair_gaps`); a partner in `round_partner` (a grain attached to the bed:
+    a sphere, off the lattice) never faces. The gap and normal are the
+    partners' (`_contact_normal`).
 
     # Choice: the gap along the mean normal of all partners took the recess a
     # block rests in (a concave corner: diagonal mean normal, the floor partner
@@ -1083,27 +1178,10 @@ def _wall_surface(
     # block's release (400-1200 N/m against a 5.6 N/m weight), threw the block
     # off the bed on release.
     """
-    dim = outward.shape[-1]
-    snapped = _snap(outward)
-    own = [take_rows(snapped[:, a], pairs.index) for a in range(dim)]
-    distance = jnp.where(close, pairs.distance, 2.0 * l0)
-    plane = -sum(o * n for o, n in zip(pairs.offset, own))
-    facing = close & (plane > _FACING * distance)
-    if round_partner is not None:
-        facing = facing & ~round_partner
-    gaps = jnp.where(facing, plane, distance)
-    away = [-o / distance for o in pairs.offset]  # from the partner to i
-    direction = [jnp.where(facing, n, u) for n, u in zip(own, away)]
-    depth = jnp.where(close, jnp.maximum(l0 - gaps, 0.0), 0.0)
-    pressed = jnp.stack([jnp.sum(depth * d, axis=1) for d in direction], axis=-1)
-    faced = jnp.stack(
-        [jnp.sum(jnp.where(facing, n, 0.0), axis=1) for n in own], axis=-1
+    gaps, direction, facing = _pair_gaps(
+        close, pairs, _snap(outward), l0, round_partner
     )
-    normal_sum = jnp.where(jnp.any(depth > 0, axis=1)[:, None], pressed, faced)
-    ok = jnp.any(close, axis=1) & jnp.any(normal_sum != 0, axis=-1)
-    length = safe_norm(normal_sum, ok)
-    normal = jnp.where(ok[:, None], normal_sum / length[:, None], 0.0)
-    gap = jnp.where(ok, jnp.min(gaps, axis=1), 2.0 * l0)
+    normal, gap = _contact_normal(close, gaps, direction, facing, l0)
     return normal, gap, _partner_velocity(close, pairs, velocity)
 
 
