@@ -563,16 +563,16 @@ class RigidBodies(AbstractBodyModel):
         normal, gap, v_wall = _wall_surface(
             on_wall, pairs, outward, velocity, l0, round_partners(state, pairs)
         )
-        # between bodies: each particle of the lower-index body against the
-        # particles of one higher-index body (the highest it touches)
-        other = jnp.max(jnp.where(near, partner_body, -1), axis=1)
-        facing_body = near & (partner_body > body[:, None])
-        facing_body = facing_body & (partner_body == other[:, None])
-        if self.count < 2:  # no pair of bodies: nothing to compute
-            facing_body = jnp.zeros_like(near)
-        faces = _body_faces(state, outward)
-        gaps, _, _ = _pair_gaps(facing_body, pairs, faces, l0, own=True)
-        pressed = facing_body & (gaps < l0)
+        pressed = jnp.zeros_like(near)
+        if self.count >= 2:  # with no pair of bodies nothing to compute
+            # between bodies: each particle of the lower-index body against the
+            # particles of one higher-index body (the highest it touches)
+            other = jnp.max(jnp.where(near, partner_body, -1), axis=1)
+            facing_body = near & (partner_body > body[:, None])
+            facing_body = facing_body & (partner_body == other[:, None])
+            faces = _body_faces(state, outward)
+            gaps, _, _ = _pair_gaps(facing_body, pairs, faces, l0, own=True)
+            pressed = facing_body & (gaps < l0)
         count = body_sum(
             ((gap < l0) | jnp.any(pressed, axis=1) | _partnered(pressed, pairs)).astype(
                 mass.dtype
