@@ -173,6 +173,17 @@ def test_blocks_out_counts_the_blocks_that_left_their_place():
     assert float(probe(case.scene, state)) == 2.0  # 2.1 cm and 3 cm > 2 cm; 1.9 not
 
 
+@pytest.mark.parametrize("spacing", [0.004, 0.0075, 0.01])
+def test_block_washout_builds_its_rows_at_a_coarser_spacing(spacing):
+    # The gaps between the blocks are built at least one spacing wide; the
+    # reach that holds them must be measured the same way.
+    case = jaxmps.scenes.block_washout(spacing=spacing)
+    x = np.asarray(case.state.rigid.centre[:, 0])
+    length = case.config["block_length"]
+    assert len(x) == 16
+    assert np.all(np.diff(x) >= length + spacing - 1e-9)
+
+
 def test_block_washout_refuses_what_flume_refuses():
     with pytest.raises(ValueError, match="Unknown parameter.*'block_washout'"):
         jaxmps.scenes.block_washout(tail_length=0.3)

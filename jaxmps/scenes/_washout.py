@@ -11,6 +11,7 @@ from ._case import Case
 from ._common import resolve, setting_length
 from ._flume import DEFAULTS as _FLUME
 from ._flume import flume
+from ._flume_bed import optional
 
 # Seed 002's two measured scour holes below the blocks (discharge 0.006 m^2/s):
 # bed lowering Delta H [m] -> (hole length L, deepest point Z_d, exposure of the
@@ -112,12 +113,14 @@ def block_washout(**overrides) -> Case:
         setting_length(c, "block_length"),
         setting_length(c, "block_height"),
     )
-    gap = round(c["block_gap"] / l0) * l0
     if c["block_density"] is None:
         c["block_density"] = _BLOCK_MASS_PER_WIDTH / (length * height)
     if c["reach_length"] is None:
+        # the gap and the hole as `flume` builds them (whole spacings, a gap
+        # at least one where there is one), so that they fit at any spacing
+        gap = optional(c["block_gap"], l0)
         protection = int(c["block_rows"]) * (length + gap)
-        c["reach_length"] = protection + c["scour_length"]
+        c["reach_length"] = protection + optional(c["scour_length"], l0)
     case = flume(**c)
     params = fed_depth(case)
     return Case(
