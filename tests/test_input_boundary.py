@@ -118,6 +118,12 @@ def test_a_length_of_half_a_spacing_or_more_is_built_in_whole_spacings():
     assert case.config["depth"] == pytest.approx(0.05)  # 0.6 spacings: one
 
 
+@pytest.mark.parametrize("name", ["flume", "local_scour", "block_washout"])
+def test_a_2d_flume_scene_asked_for_3d_names_itself(name):
+    with pytest.raises(ValueError, match=f"^{name} is 2-D"):
+        jaxmps.scenes.build(name, dim=3)
+
+
 @pytest.mark.parametrize(
     "scene, settings",
     [

@@ -69,6 +69,8 @@ def local_scour(**overrides) -> Case:
     42.5 / 4.9 cm (`MEASURED_SCOUR`). The hole depends on the grain size, which
     is the spacing here."""
     c = resolve("local_scour", LOCAL_SCOUR, overrides)
+    if int(c["dim"]) != 2:
+        raise ValueError("local_scour is 2-D only for now (dim=2).")
     if c["inflow_depth"] is None:
         c["inflow_depth"] = (c["discharge"] ** 2 / c["gravity"]) ** (1 / 3)
     case = flume(**c)

@@ -101,6 +101,8 @@ def block_washout(**overrides) -> Case:
     sweep on the case built for the largest.
     """
     c = resolve("block_washout", BLOCK_WASHOUT, overrides)
+    if int(c["dim"]) != 2:
+        raise ValueError("block_washout is 2-D only for now (dim=2).")
     hole = scour_hole(float(c["bed_lowering"]))
     for key, value in zip(("scour_length", "scour_depth", "scour_exposure"), hole):
         if c[key] is None:
