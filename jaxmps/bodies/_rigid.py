@@ -1240,8 +1240,8 @@ def _pair_normal(pair, touching, normal, slots):
     # along different normals get their mean.
     """
     total = _segment_sum(jnp.where(touching[:, None], normal, 0.0), pair, slots)
-    size = jnp.linalg.norm(total, axis=-1, keepdims=True)
-    mean = total / jnp.where(size > 0, size, 1.0)
+    size = safe_norm(total, jnp.any(total != 0, axis=-1))  # no NaN gradient at 0
+    mean = total / size[:, None]
     return jnp.where(touching[:, None], mean[jnp.minimum(pair, slots - 1)], 0.0)
 
 
