@@ -338,7 +338,7 @@ class RigidBodies(AbstractBodyModel):
             mass,
             lever,
             inertia_k,
-            from_bodies,
+            (from_bodies, exchange.total - from_bodies),
             outward,
             spare,
         )
@@ -604,7 +604,7 @@ class RigidBodies(AbstractBodyModel):
         mass: Float[Array, " b"],
         lever: Float[Array, "n d"],
         inertia: Float[Array, "b a a"],
-        from_bodies: Float[Array, "n d"],
+        between: tuple[Float[Array, "n d"], Float[Array, "n d"]],
         outward: Float[Array, "n d"],
         spare: Float[Array, " b"],
     ) -> tuple[Float[Array, "b d"], Float[Array, "b a"], Bool[Array, " b"]]:
@@ -624,7 +624,11 @@ class RigidBodies(AbstractBodyModel):
         otherwise scaled to mu_k N_i dt (slip); 1/m_c is the point's compliance
         along v_t on both bodies (1/M + (r x t).I^-1 (r x t)) times each body's
         number of contact particles (Jacobi's share, which keeps the sweeps from
-        overshooting).
+        overshooting). With the friction torque on, the faces between the
+        bodies hold them from turning over each other within the same sweeps
+        (`_FacesBetween`): n_i is then the pair's mean normal, and where a face
+        holds, the point's compliance counts the two bodies turning together
+        ((r_B - r_A) x t with I_A + I_B) and each turning about n alone.
 
         A body that sticks to the walls (velocities after the wall friction)
         with a `spare` static capacity [N s] at least the most friction the
@@ -645,15 +649,18 @@ class RigidBodies(AbstractBodyModel):
         # needs the sweeps (the middle block rubs on two bodies): with 16 its
         # blocks slid 3.8 / 5.3 mm in 1 s (27 / 60 with the contact pushing
         # along each pair), with 32 crept 0.43 / 0.97 mm, with 64 stayed within
-        # 0.05 mm (validation/block_stack_sweeps.py). With the
-        # bodies' rotation left out of m_c the sweeps overshot (a square's side
-        # point has M / 2.5) and two blocks side by side blew up.
+        # 0.05 mm (validation/block_stack_sweeps.py; before the faces' couples).
+        # With the bodies' rotation left out of m_c the sweeps overshot (a
+        # square's side point has M / 2.5) and two blocks side by side blew up;
+        # with the faces holding, so did two touching blocks side by side in
+        # water (the friction's moments turn the two together, which the face
+        # does not stop) until the common turning was counted.
         """
         rubbing, slots, anchored = self._body_contacts(
-            disc, params, state, load, mass, lever, from_bodies, outward, spare
+            disc, params, state, load, mass, lever, between, outward, spare
         )
         change, turn = self._sweep_bodies(
-            rubbing, slots, anchored, velocity, momentum_l, mass, inertia
+            rubbing, slots, anchored, velocity, momentum_l, mass, inertia, params.dt
         )
         return change, turn, anchored
 
@@ -665,7 +672,7 @@ class RigidBodies(AbstractBodyModel):
         load: FluidLoad,
         mass: Float[Array, " b"],
         lever: Float[Array, "n d"],
-        from_bodies: Float[Array, "n d"],
+        between: tuple[Float[Array, "n d"], Float[Array, "n d"]],
         outward: Float[Array, "n d"],
         spare: Float[Array, " b"],
     ) -> tuple["_Rubbing", Float[Array, " b"], Bool[Array, " b"]]:
@@ -695,6 +702,7 @@ class RigidBodies(AbstractBodyModel):
         pressure_force = -disc.volume * (
             0.0 if load.body_gradient is None else load.body_gradient
         )
+        from_bodies, reaction = between
         n_force = jnp.sum((pressure_force + from_bodies) * along_pair, axis=-1)
         n_force = jnp.where(touching, jnp.maximum(n_force, 0.0), 0.0)
         weight = near / jnp.maximum(jnp.sum(near, axis=1, keepdims=True), 1)
@@ -736,9 +744,38 @@ class RigidBodies(AbstractBodyModel):
             keep = touching.reshape((-1,) + (1,) * (x.ndim - 1))
             return jnp.where(keep, x, jnp.asarray(fill, x.dtype))
 
-        picked = (normal, middle, across, cap_s, cap_k, held, partner_held, both)
+        # each particle on the body below it (the highest lower-index body it
+        # touches): the contact faces' side of B in each pair A < B
+        below = (
+            pairs.valid
+            & member[:, None]
+            & (partner_body >= 0)
+            & (partner_body < body[:, None])
+            & (pairs.distance < self.contact_distance * l0)
+        )
+        lower = jnp.max(jnp.where(below, partner_body, -1), axis=1)
+        resting = (lower >= 0).at[slot].get(mode="fill", fill_value=False)
+        upper_key = jnp.where(lower >= 0, lower * count + index, count * count)
+        upper_key = upper_key.at[slot].get(mode="fill", fill_value=count * count)
+        upper_key = jnp.where(resting, upper_key, count * count)
+
+        def pick_upper(x):
+            x = x.at[slot].get(mode="fill", fill_value=0)
+            return jnp.where(resting[:, None], x, 0.0)
+
+        # with the faces' couples (the friction torque on) the slip is along the
+        # pair's contact plane; without them along each particle's own
+        faced = self.friction is not None and self.friction.torque
+        slip = along_pair if faced else normal
+        picked = (slip, middle, across, cap_s, cap_k, held, partner_held, both)
         rubbing = _Rubbing(
-            touching, pick(index), pick(other, count), *(pick(x) for x in picked)
+            touching,
+            pick(index),
+            pick(other, count),
+            *(pick(x) for x in picked),
+            upper_key=upper_key,
+            upper_lever=pick_upper(lever),
+            upper_force=pick_upper(pressure_force + reaction),
         )
         return rubbing, slots, anchored
 
@@ -751,9 +788,12 @@ class RigidBodies(AbstractBodyModel):
         momentum_l: Float[Array, "b a"],
         mass: Float[Array, " b"],
         inertia: Float[Array, "b a a"],
+        dt: Float[Array, ""],
     ) -> tuple[Float[Array, "b d"], Float[Array, "b a"]]:
         """`_rub_bodies`' Jacobi sweeps over the touching slots: the change of
-        each body's velocity and angular momentum from the impulses."""
+        each body's velocity and angular momentum from the impulses and, with
+        the friction torque on, the contact faces' couples (`_FacesBetween`),
+        solved in the same sweeps."""
         count = self.count
         touching, index, other = rubbing.touching, rubbing.index, rubbing.other
         normal, middle, across = rubbing.normal, rubbing.middle, rubbing.across
@@ -762,11 +802,19 @@ class RigidBodies(AbstractBodyModel):
         their_fixed = rubbing.partner_held & ~both
         in_body, j = jnp.where(touching, index, count), jnp.minimum(other, count - 1)
         turn_per = jnp.linalg.inv(inertia)
+        free = ~anchored[:, None]
+        faces = None
+        if self.friction is not None and self.friction.torque:
+            faces = _FacesBetween.build(rubbing, anchored, inertia, count, dt)
+            together = jnp.linalg.inv(inertia[index] + inertia[j])
 
-        def give(b, arm, t, fixed):
+        def give(b, arm, t, fixed, holding):
             # the slot's compliance along t at `arm` from body b's centre of
-            # mass, times the body's slots (Jacobi's share); 0 when anchored
+            # mass, times the body's slots (Jacobi's share); 0 when anchored.
+            # Where its face holds, the body turns about the face's normal alone
             rt = rot.cross(arm, t)
+            if faces is not None:
+                rt = jnp.where(holding[:, None], faces.about(rt), rt)
             k = 1.0 / mass[b] + jnp.einsum("ni,nij,nj->n", rt, turn_per[b], rt)
             return jnp.where(fixed, 0.0, slots[b] * k)
 
@@ -778,14 +826,22 @@ class RigidBodies(AbstractBodyModel):
             )
             return dv / mass[:, None], dl
 
-        def sweep(_, impulse):
-            # the bodies' motion with the impulses so far (an anchored body
-            # moves only with those from other anchored bodies), at the middle
-            # of each slot's pairs on either side
+        def sweep(_, carry):
+            # the bodies' motion with the impulses and couples so far (an
+            # anchored body moves only with those from other anchored bodies),
+            # at the middle of each slot's pairs on either side
+            impulse, couple, holding = carry
             pair, rest = changes(impulse, both), changes(impulse, ~both)
-            free = ~anchored[:, None]
             v = velocity + pair[0] + jnp.where(free, rest[0], 0.0)
             ell = momentum_l + pair[1] + jnp.where(free, rest[1], 0.0)
+            if faces is not None:
+                ell = ell + faces.turn(couple, moving=True)
+                most = faces.limit(impulse)
+                for _ in range(_FACE_SWEEPS):
+                    more, holds = faces.hold(ell, couple, most)
+                    ell = ell + faces.turn(more - couple, moving=True)
+                    couple = more
+                holding = faces.holding(holds)
             omega = jnp.linalg.solve(inertia, ell[..., None])[..., 0]
             relative = (v[index] + rot.spin_cross(omega[index], middle)) - (
                 v[j] + rot.spin_cross(omega[j], across)
@@ -794,17 +850,34 @@ class RigidBodies(AbstractBodyModel):
             tangential = relative - along * normal
             speed = safe_norm(tangential, touching, placeholder=0.0)
             t = tangential / jnp.where(speed > 0, speed, 1.0)[:, None]
-            total = give(index, middle, t, own_fixed) + give(j, across, t, their_fixed)
+            total = give(index, middle, t, own_fixed, holding) + give(
+                j, across, t, their_fixed, holding
+            )
+            if faces is not None:
+                # where the face holds, the two turn together when both move:
+                # the impulse's moment about the pair, (r_B - r_A) x t, turns
+                # them with I_A + I_B
+                moving = holding & ~own_fixed & ~their_fixed
+                swing = rot.cross(middle - across, t)
+                common = jnp.einsum("ni,nij,nj->n", swing, together[index], swing)
+                share = jnp.maximum(slots[index], slots[j])
+                total = total + jnp.where(moving, share * common, 0.0)
             m_c = jnp.where(total > 0, 1.0 / jnp.where(total > 0, total, 1.0), 0.0)
             trial = impulse - m_c[:, None] * tangential
             size = safe_norm(trial, touching, placeholder=0.0)
             scale = jnp.where(size > cap_s, cap_k / jnp.where(size > 0, size, 1.0), 1.0)
-            return jnp.where(touching[:, None], scale[:, None] * trial, 0.0)
+            impulse = jnp.where(touching[:, None], scale[:, None] * trial, 0.0)
+            return impulse, couple, holding
 
-        impulse = jax.lax.fori_loop(
-            0, self.friction_sweeps, sweep, jnp.zeros_like(middle)
+        start = (
+            jnp.zeros_like(middle),
+            jnp.zeros((count * count, momentum_l.shape[-1]), momentum_l.dtype),
+            jnp.zeros_like(touching),
         )
+        impulse, couple, _ = jax.lax.fori_loop(0, self.friction_sweeps, sweep, start)
         change, turn = changes(impulse, touching)
+        if faces is not None:
+            turn = turn + faces.turn(couple, moving=False)
         return change, turn
 
     def _contact(
@@ -896,7 +969,11 @@ class _Rubbing(eqx.Module):
     """Friction between bodies, per body-particle slot: whether it touches a
     higher body, its body and that body (count where none), the contact normal,
     the pair middles from the two centres of mass, the static and kinetic
-    impulse caps, and whether its body, its partner body or both are anchored."""
+    impulse caps, and whether its body, its partner body or both are anchored.
+    Then the same slot as a particle of the upper body B of a pair A < B
+    (`upper_key` A count + B, count^2 where it touches no lower body): where it
+    is from B's centre of mass, and the force A puts on it [N] (pressure and
+    push)."""
 
     touching: Bool[Array, " m"]
     index: Int[Array, " m"]
@@ -909,6 +986,204 @@ class _Rubbing(eqx.Module):
     held: Bool[Array, " m"]
     partner_held: Bool[Array, " m"]
     both: Bool[Array, " m"]
+    upper_key: Int[Array, " m"]
+    upper_lever: Float[Array, "m d"]
+    upper_force: Float[Array, "m d"]
+
+
+# Jacobi sweeps of the faces' couples within each sweep of the friction: with one
+# a stack of three blocks (0.5 x 0.25 m on a 2 m base, tan = 0.6 = 0.91 mu) crept
+# 0.09 / 0.25 mm in 1 s, with two 0.01 / 0.035 mm, with four 0.002 / 0.005 mm
+_FACE_SWEEPS = 4
+
+
+class _FacesBetween(eqx.Module):
+    """The contact faces between pairs of bodies (A < B, keyed A count + B):
+    their normal forces stop B turning over A (every component of B's angular
+    velocity relative to A's but the spin about the contact normal n) while
+    their resultant stays on the face, as `_face` does against walls. The couple
+    K acts on B and -K on A. With the moment M_C about the face's mean point r_C
+    (the mean of the pairs' middles) that A's pressure and push already put on
+    B this step, the face's total K + dt M_C is at most N dt e: N the normal
+    force B feels from A (pressure, push, and the normal part of the friction's
+    impulses on it), e the farthest of the pairs' middles from r_C along
+    n x K / |K|. Beyond that B turns over the face's edge with the rest.
+
+    The couples are solved within the friction's sweeps (`hold`, Jacobi: each
+    body's compliance I^-1 times the number of faces it has, `_FACE_SWEEPS`
+    times per sweep), and where a face holds the friction's compliance there
+    has no turning but about n: the friction finds its stick impulses with the
+    faces holding.
+
+    # Choice: without these couples only the pressure and the push between the
+    # two lattices held a block up on another: a block 0.3 x 0.6 m (l0 = 0.05 m)
+    # on a base block toppled at 0.9 of (w - l0) / (h - l0), where on a wall it
+    # stands to 0.97. Applied once after the sweeps, the couples took away the
+    # rotation with which the sweeps had stopped the contact points, leaving
+    # the centre's motion: resting blocks crept 4-7 mm in 2 s. N is B's side:
+    # the pair form of the pressure is not antisymmetric, and on A it read
+    # 0.86-0.93 of a resting block's weight (1.00 on B); with the friction
+    # slipping along each particle's own normal, the friction's part of N was
+    # 0.2-0.3 of the weight and growing. The face reaches to the pairs'
+    # middles, half a spacing beyond the corner particles, where the two
+    # lattices meet, as the friction's impulses act there: the block above
+    # tips at its solid's limit tan = w / h (measured between 0.491 and 0.509
+    # for w / h = 0.5); against walls `_face` takes the particles' hull
+    # (w - l0) / (h - l0).
+    """
+
+    count: int = eqx.field(static=True)
+    live: Bool[Array, " p"]
+    normal: Float[Array, "p d"]
+    moves_a: Bool[Array, " p"]
+    moves_b: Bool[Array, " p"]
+    stiffness: Float[Array, "p a a"]
+    existing: Float[Array, "p a"]
+    push: Float[Array, " p"]
+    pair: Int[Array, " m"]
+    middle: Float[Array, "m d"]
+    reach: Float[Array, "p 2"] | None
+    turn_per: Float[Array, "b a a"]
+
+    @classmethod
+    def build(cls, rubbing, anchored, inertia, count, dt) -> "_FacesBetween":
+        faces = count * count
+        touching = rubbing.touching
+        pair = jnp.where(touching, rubbing.index * count + rubbing.other, faces)
+        upper = rubbing.upper_key
+
+        def per_pair(x, key=pair):
+            keep = (key < faces).reshape((-1,) + (1,) * (x.ndim - 1))
+            return _segment_sum(jnp.where(keep, x, 0.0), key, faces)
+
+        number = per_pair(jnp.ones_like(rubbing.cap_s))
+        has = number > 0
+        per = jnp.where(has, number, 1.0)[:, None]
+        # the face's mean point from A's centre of mass and from B's
+        centre_a = per_pair(rubbing.middle) / per
+        centre_b = per_pair(rubbing.across) / per
+        # the partners' outward normals point from B into A
+        direction = -per_pair(rubbing.normal)
+        length = safe_norm(direction, has, placeholder=1.0)
+        n = jnp.where(has[:, None], direction / length[:, None], 0.0)
+        # what B feels from A: its normal force and its moment about the face's
+        # mean point
+        on_b = rubbing.upper_lever - centre_b[jnp.minimum(upper, faces - 1)]
+        load = jnp.sum(per_pair(rubbing.upper_force, upper) * n, -1)
+        existing = dt * per_pair(rot.cross(on_b, rubbing.upper_force), upper)
+        a_body, b_body = jnp.arange(faces) // count, jnp.arange(faces) % count
+        both = anchored[a_body] & anchored[b_body]
+        moves_a, moves_b = ~anchored[a_body] | both, ~anchored[b_body] | both
+        live = has & (moves_a | moves_b)
+        shares = _segment_sum((live & moves_a).astype(n.dtype), a_body, count)
+        shares = shares + _segment_sum((live & moves_b).astype(n.dtype), b_body, count)
+        turn_per = shares[:, None, None] * jnp.linalg.inv(inertia)
+        compliance = jnp.where(moves_a[:, None, None], turn_per[a_body], 0.0)
+        compliance = compliance + jnp.where(
+            moves_b[:, None, None], turn_per[b_body], 0.0
+        )
+        if n.shape[-1] == 3:  # in the plane normal to n (n n^T keeps it invertible)
+            across = jnp.eye(3, dtype=n.dtype)[None] - n[:, :, None] * n[:, None, :]
+            compliance = across @ compliance @ across + n[:, :, None] * n[:, None, :]
+            existing = existing - jnp.sum(existing * n, -1, keepdims=True) * n
+        eye = jnp.eye(compliance.shape[-1], dtype=n.dtype)
+        compliance = jnp.where(live[:, None, None], compliance, eye)
+        middle = rubbing.middle - centre_a[jnp.minimum(pair, faces - 1)]
+        reach = None
+        if n.shape[-1] == 2:  # the lever is +-(n_y, -n_x)
+            lever = jnp.stack([n[:, 1], -n[:, 0]], axis=-1)
+            reach = jnp.stack(
+                [_face_reach(middle, pair, lever), _face_reach(middle, pair, -lever)],
+                axis=-1,
+            )
+        return cls(
+            count=count,
+            live=live,
+            normal=n,
+            moves_a=moves_a,
+            moves_b=moves_b,
+            stiffness=jnp.linalg.inv(compliance),
+            existing=existing,
+            push=dt * load,
+            pair=pair,
+            middle=middle,
+            reach=reach,
+            turn_per=jnp.linalg.inv(inertia),
+        )
+
+    def _ends(self):
+        faces = self.count * self.count
+        return jnp.arange(faces) // self.count, jnp.arange(faces) % self.count
+
+    def turn(self, couple: Float[Array, "p a"], moving: bool) -> Float[Array, "b a"]:
+        """Each body's change of angular momentum from the couples (`moving`:
+        only the bodies the sweeps move)."""
+        a_body, b_body = self._ends()
+        on_b, on_a = self.live, self.live
+        if moving:
+            on_b, on_a = on_b & self.moves_b, on_a & self.moves_a
+        return _segment_sum(
+            jnp.where(on_b[:, None], couple, 0.0), b_body, self.count
+        ) - _segment_sum(jnp.where(on_a[:, None], couple, 0.0), a_body, self.count)
+
+    def limit(self, impulse: Float[Array, "m d"]) -> Float[Array, " p"]:
+        """N dt per face with the friction's `impulse` so far: their parts along n
+        on B (-J at each slot) count with the pressure and the push."""
+        faces = self.count * self.count
+        n = self.normal[jnp.minimum(self.pair, faces - 1)]
+        pressing = jnp.where(self.pair < faces, jnp.sum(impulse * n, -1), 0.0)
+        return jnp.maximum(self.push - _segment_sum(pressing, self.pair, faces), 0.0)
+
+    def hold(
+        self,
+        momentum_l: Float[Array, "b a"],
+        couple: Float[Array, "p a"],
+        most: Float[Array, " p"],
+    ) -> tuple[Float[Array, "p a"], Bool[Array, " p"]]:
+        """The couples after one sweep: those so far (included in `momentum_l`)
+        and what stops the relative turning that remains, each face's total at
+        most `most` (N dt) times its reach; and which faces hold."""
+        a_body, b_body = self._ends()
+        n = self.normal
+        omega = jnp.einsum("bij,bj->bi", self.turn_per, momentum_l)
+        relative = omega[b_body] - omega[a_body]
+        dim = n.shape[-1]
+        if dim == 3:  # the spin about the normal is free
+            relative = relative - jnp.sum(relative * n, -1, keepdims=True) * n
+        total = couple - jnp.einsum("pij,pj->pi", self.stiffness, relative)
+        total = total + self.existing
+        if dim == 3:  # normal forces give no moment about the normal
+            total = total - jnp.sum(total * n, -1, keepdims=True) * n
+        size = safe_norm(total, self.live, placeholder=0.0)
+        if dim == 2:
+            e = jnp.where(total[:, 0] > 0, self.reach[:, 0], self.reach[:, 1])
+        else:
+            unit = total / jnp.where(size > 0, size, 1.0)[:, None]
+            e = _face_reach(self.middle, self.pair, jnp.cross(n, unit))
+        scale = jnp.minimum(1.0, most * e / jnp.where(size > 0, size, 1.0))
+        held = jnp.where(self.live[:, None], scale[:, None] * total - self.existing, 0)
+        return held, self.live & (scale >= 1.0)
+
+    def holding(self, holds: Bool[Array, " p"]) -> Bool[Array, " m"]:
+        """Which slots' faces hold."""
+        faces = self.count * self.count
+        return holds[jnp.minimum(self.pair, faces - 1)] & (self.pair < faces)
+
+    def about(self, moment: Float[Array, "m a"]) -> Float[Array, "m a"]:
+        """Each slot's `moment` about its face's normal alone (0 in 2-D)."""
+        if moment.shape[-1] == 1:
+            return jnp.zeros_like(moment)
+        n = self.normal[jnp.minimum(self.pair, self.count * self.count - 1)]
+        return jnp.sum(moment * n, -1, keepdims=True) * n
+
+
+def _face_reach(middle, pair, lever):
+    """The farthest of each face's pair middles from its mean point along its
+    `lever` (0 where none reaches out that way)."""
+    faces = lever.shape[0]
+    along = jnp.sum(middle * lever[jnp.minimum(pair, faces - 1)], axis=-1)
+    farthest = jax.ops.segment_max(along, pair, num_segments=faces + 1)[:faces]
+    return jnp.maximum(farthest, 0.0)
 
 
 class Exchange(eqx.Module):
@@ -1234,10 +1509,14 @@ def _pair_normal(pair, touching, normal, slots):
     # load: the friction between bodies saw 0.90-0.93 of the normal force in
     # 3-D (a 0.4 x 0.4 x 0.2 m block, l0 = 0.1 m; 0.95-0.97 in 2-D) and let a
     # block slide 1.12 times as far as g (sin - mu cos) (validation/
-    # block_slide.py). The sweeps keep each particle's own normal for the
-    # direction of slip: with the pair's there too, a stack of three blocks
-    # jumped 0.4 mm upslope when released. Bodies that touch at several places
-    # along different normals get their mean.
+    # block_slide.py). With the faces' couples (`_FacesBetween`) it is also
+    # the slip's plane: along each particle's own normal the friction at those
+    # edge slots carried normal load (held up a resting block in part, and
+    # with the spin-up's mu = 1e3 all of it, so that it fell onto the push
+    # when released). Without the couples the sweeps keep each particle's own
+    # normal: with the pair's a stack of three blocks jumped 0.4 mm upslope
+    # when released. Bodies that touch at several places along different
+    # normals get their mean.
     """
     total = _segment_sum(jnp.where(touching[:, None], normal, 0.0), pair, slots)
     size = safe_norm(total, jnp.any(total != 0, axis=-1))  # no NaN gradient at 0
