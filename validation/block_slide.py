@@ -194,7 +194,9 @@ def main():
             "over g (sin - mu cos) t^2 / 2; hop: its largest speed normal to the "
             "base; rock: its largest spin. Codes: `central` pushed each pair of "
             "the two bodies closer than l0 along the pair; `faces` pushes each "
-            "particle along the bodies' faces (`_pair_gaps`).\n\n" + table(every) + "\n"
+            "particle along the bodies' faces (`_pair_gaps`); `faces + couples` "
+            "adds the faces' couples against turning over each other "
+            "(`_FacesBetween`).\n\n" + table(every) + "\n"
         )
 
 

@@ -7,7 +7,11 @@ weight leaves its base where tan(theta) > (width - l0) / (height - l0) (its
 outermost particles' centres carry the contact). For each ratio: the largest
 tilt in 2 s, the travel along the slope, and whether it toppled (a tilt beyond 60
 degrees). A cube and a block twice as tall as wide, 2-D (l0 = 0.1 m) and a cube
-in 3-D (l0 = 0.2 m).
+in 3-D (l0 = 0.2 m). Then on another body: a block resting on a 3 m base block
+(`block_stack`, 2-D, l0 = 0.05 m, mu = 2 between them and against the floor,
+1.5 s after the scene's settling), a square and a block twice as tall as wide;
+there the contact's face reaches to where the two lattices meet, half a spacing
+beyond the corner particles, so the solid's limit w / h is given beside.
 
 Run: python validation/tipping_onset.py  (writes results/tipping_onset_cpu.{json,md})
 """
@@ -21,6 +25,7 @@ import numpy as np
 from _common import machine_info
 
 import jaxmps
+from jaxmps._result import result_name
 
 HERE = pathlib.Path(__file__).parent
 G, T, MU = 9.81, 2.0, 1.5
@@ -30,6 +35,14 @@ CASES = (
     ("tall", 2, 0.5, 1.0, 0.1, (0.9, 0.95, 0.98, 1.02, 1.05, 1.1)),
     ("cube", 3, 1.0, 1.0, 0.2, (0.9, 0.98, 1.02, 1.1)),
 )
+
+
+# (name, width, height, spacing, ratios): blocks on a base block
+ON_BODY = (
+    ("square", 0.5, 0.5, 0.05, (0.9, 0.97, 1.03, 1.1)),
+    ("tall", 0.3, 0.6, 0.05, (0.9, 0.97, 1.03, 1.06, 1.08, 1.12, 1.2)),
+)
+T_ON_BODY = 1.5
 
 
 def tilt_angle(orientation: np.ndarray, dim: int) -> np.ndarray:
@@ -92,10 +105,69 @@ def run(name, dim, width, height, l0, ratios):
     ]
 
 
+def run_on_body(name, width, height, l0, ratios):
+    limit = (width - l0) / (height - l0)
+    rows = []
+    for r in ratios:
+        case = jaxmps.scenes.block_stack(
+            block_size=width,
+            block_height=height,
+            base_width=3.0,
+            floor_length=4.0,
+            spacing=l0,
+            dt=0.001,
+            mu_static=2.0,
+            angle=float(np.degrees(np.arctan(limit * r))),
+        )
+        n = round(T_ON_BODY / float(case.params.dt))
+        start = time.perf_counter()
+        out = jaxmps.simulate(
+            case.scene,
+            case.params,
+            case.state,
+            n,
+            n // 30,
+            observe=lambda scene, state: state.rigid,
+            throw=False,
+        )
+        tilt = tilt_angle(np.asarray(out.saved.orientation)[:, 1], 2)
+        travel = np.asarray(out.saved.centre)[-1, 1, 0] - float(
+            case.state.rigid.centre[1, 0]
+        )
+        rows.append(
+            dict(
+                block=name,
+                width=width,
+                height=height,
+                spacing=l0,
+                limit=limit,
+                solid_limit=width / height,
+                ratio=float(r),
+                tan=float(limit * r),
+                tilt_at_release_deg=float(
+                    tilt_angle(np.asarray(case.state.rigid.orientation)[1], 2)
+                ),
+                largest_tilt_deg=float(tilt.max()),
+                travel_m=float(travel),
+                toppled=bool(tilt.max() > 60.0),
+                result=result_name(out.result),
+                wall_s=time.perf_counter() - start,
+            )
+        )
+    return rows
+
+
 def main():
     jax.config.update("jax_enable_x64", True)
     rows = [row for case in CASES for row in run(*case)]
-    out = dict(machine=machine_info(), mu=MU, t_end=T, rows=rows)
+    on_body = [row for case in ON_BODY for row in run_on_body(*case)]
+    out = dict(
+        machine=machine_info(),
+        mu=MU,
+        t_end=T,
+        rows=rows,
+        on_body=dict(mu=2.0, t_end=T_ON_BODY, rows=on_body),
+    )
     (HERE / "results" / "tipping_onset_cpu.json").write_text(json.dumps(out, indent=1))
     lines = [
         "# Tipping onset of a block on a slope (float64, CPU)",
@@ -123,6 +195,35 @@ def main():
         lines.append(
             f"- {dim}-D {name}: stands up to {stands} x the limit, topples from "
             f"{tips} x"
+        )
+    lines += [
+        "",
+        "## On another body",
+        "",
+        f"`block_stack`: the block on a 3 m base block, l0 = 0.05 m, mu = 2, "
+        f"{T_ON_BODY} s after the scene's settling. The particles' limit is "
+        "(width - l0) / (height - l0), the solid's width / height.",
+        "",
+        "| block | limit | solid's limit | tan(theta) / limit | tan(theta) | tilt at "
+        "release [deg] | largest tilt [deg] | travel [m] | toppled | result |",
+        "|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    for r in on_body:
+        lines.append(
+            f"| {r['block']} {r['width']:g} x {r['height']:g} m | {r['limit']:.3f} | "
+            f"{r['solid_limit']:.3f} | {r['ratio']:g} | {r['tan']:.3f} | "
+            f"{r['tilt_at_release_deg']:.2f} | {r['largest_tilt_deg']:.2f} | "
+            f"{r['travel_m']:.4f} | {'yes' if r['toppled'] else 'no'} | "
+            f"{r['result']} |"
+        )
+    lines.append("")
+    for name, *_ in ON_BODY:
+        sub = [r for r in on_body if r["block"] == name]
+        stands = max([r["tan"] for r in sub if not r["toppled"]], default=None)
+        tips = min([r["tan"] for r in sub if r["toppled"]], default=None)
+        lines.append(
+            f"- {name} on a block: stands up to tan = {stands:.3f}, topples from "
+            f"{tips:.3f} (solid's limit {sub[0]['solid_limit']:.3f})"
         )
     (HERE / "results" / "tipping_onset_cpu.md").write_text("\n".join(lines) + "\n")
     print("\n".join(lines))
