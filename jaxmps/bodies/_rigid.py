@@ -837,10 +837,15 @@ class RigidBodies(AbstractBodyModel):
             if faces is not None:
                 ell = ell + faces.turn(couple, moving=True)
                 most = faces.limit(impulse)
-                for _ in range(_FACE_SWEEPS):
+
+                def face_sweep(_, held):
+                    ell, couple, _ = held
                     more, holds = faces.hold(ell, couple, most)
-                    ell = ell + faces.turn(more - couple, moving=True)
-                    couple = more
+                    return ell + faces.turn(more - couple, moving=True), more, holds
+
+                ell, couple, holds = jax.lax.fori_loop(
+                    0, _FACE_SWEEPS, face_sweep, (ell, couple, faces.live)
+                )
                 holding = faces.holding(holds)
             omega = jnp.linalg.solve(inertia, ell[..., None])[..., 0]
             relative = (v[index] + rot.spin_cross(omega[index], middle)) - (
