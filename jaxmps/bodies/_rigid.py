@@ -81,8 +81,8 @@ class RigidBodies(AbstractBodyModel):
     contact_stiffness: float = 0.2
     contact_damping: float = 0.7
     # Choice: 64 Jacobi sweeps of the friction between bodies (see `_rub_bodies`)
-    # hold a stack of three blocks within 0.05 mm over 1 s; they run over the
-    # body particles alone (`particles`, set by `add_rigid_bodies`).
+    # hold a stack of three blocks within 0.005 mm over 1 s (32: 0.2 mm); they
+    # run over the body particles alone (`particles`, set by `add_rigid_bodies`).
     friction_sweeps: int = 64
     particles: int | None = None
 

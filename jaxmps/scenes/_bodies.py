@@ -801,8 +801,8 @@ def block_stack(**overrides) -> Case:
     a block (no water gets under a block that rests on the floor's lattice), so
     seed 002's `submerged_weight` is the one its still-water tests assume.
     `friction_sweeps` resolves the friction between the blocks (a stack of
-    three holds to 0.1 mm/s with the default 64, creeps at 0.4 mm/s with 32
-    and slides with 16; see `jaxmps.bodies.RigidBodies`).
+    three holds to 0.005 mm/s with the default 64, creeps at 0.2 mm/s with 32
+    and 2.4 mm/s with 16; see `jaxmps.bodies.RigidBodies`).
     Probes per block k: `block{k}_x`, `block{k}_y`, `block{k}_angle`.
     """
     c = resolve("block_stack", BLOCK_STACK, overrides)
