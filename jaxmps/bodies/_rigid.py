@@ -717,13 +717,9 @@ class RigidBodies(AbstractBodyModel):
         slots = _segment_sum(touching.astype(mass.dtype), in_body, count) + (
             _segment_sum(touching.astype(mass.dtype), other, count)
         )
-        partner_mu = [
-            _mean_over(near, take_rows(jnp.where(member, mu[index], 0.0), pairs.index))
-            for mu in (params.rigid.mu_static, params.rigid.mu_kinetic)
-        ]
-        mu_s = jnp.minimum(params.rigid.mu_static[index], partner_mu[0])
-        mu_k = jnp.minimum(params.rigid.mu_kinetic[index], partner_mu[1])
-        cap_s, cap_k = mu_s * n_force * dt, mu_k * n_force * dt
+        cap_s, cap_k = (
+            mu * n_force * dt for mu in _pair_mu(params, near, pairs, member, index)
+        )
         most = jnp.where(touching, jnp.maximum(cap_s, cap_k), 0.0)
         loads = _segment_sum(most, in_body, count) + _segment_sum(most, other, count)
         anchored = spare >= loads
@@ -731,12 +727,7 @@ class RigidBodies(AbstractBodyModel):
         partner_held = anchored[jnp.minimum(other, count - 1)] & touching
         both = held & partner_held
 
-        # the sweeps run over the slots that hold body particles only
-        n = member.shape[0]
-        if self.particles is None:
-            slot = jnp.arange(n)
-        else:
-            slot = jnp.nonzero(member, size=self.particles, fill_value=n)[0]
+        slot = self._slots(member)
         touching = touching.at[slot].get(mode="fill", fill_value=False)
 
         def pick(x, fill=0):
@@ -744,25 +735,15 @@ class RigidBodies(AbstractBodyModel):
             keep = touching.reshape((-1,) + (1,) * (x.ndim - 1))
             return jnp.where(keep, x, jnp.asarray(fill, x.dtype))
 
-        # each particle on the body below it (the highest lower-index body it
-        # touches): the contact faces' side of B in each pair A < B
-        below = (
-            pairs.valid
-            & member[:, None]
-            & (partner_body >= 0)
-            & (partner_body < body[:, None])
-            & (pairs.distance < self.contact_distance * l0)
+        upper_key, upper_lever, upper_force = _upper_side(
+            pairs,
+            body,
+            partner_body,
+            (pairs.distance < self.contact_distance * l0) & member[:, None],
+            slot,
+            count,
+            (lever, pressure_force + reaction),
         )
-        lower = jnp.max(jnp.where(below, partner_body, -1), axis=1)
-        resting = (lower >= 0).at[slot].get(mode="fill", fill_value=False)
-        upper_key = jnp.where(lower >= 0, lower * count + index, count * count)
-        upper_key = upper_key.at[slot].get(mode="fill", fill_value=count * count)
-        upper_key = jnp.where(resting, upper_key, count * count)
-
-        def pick_upper(x):
-            x = x.at[slot].get(mode="fill", fill_value=0)
-            return jnp.where(resting[:, None], x, 0.0)
-
         # with the faces' couples (the friction torque on) the slip is along the
         # pair's contact plane; without them along each particle's own
         faced = self.friction is not None and self.friction.torque
@@ -774,10 +755,18 @@ class RigidBodies(AbstractBodyModel):
             pick(other, count),
             *(pick(x) for x in picked),
             upper_key=upper_key,
-            upper_lever=pick_upper(lever),
-            upper_force=pick_upper(pressure_force + reaction),
+            upper_lever=upper_lever,
+            upper_force=upper_force,
         )
         return rubbing, slots, anchored
+
+    def _slots(self, member: Bool[Array, " n"]) -> Int[Array, " m"]:
+        """The particle slots the sweeps run over: those that hold body
+        particles (all where `particles` is None; n marks a spare one)."""
+        n = member.shape[0]
+        if self.particles is None:
+            return jnp.arange(n)
+        return jnp.nonzero(member, size=self.particles, fill_value=n)[0]
 
     def _sweep_bodies(
         self,
@@ -835,18 +824,7 @@ class RigidBodies(AbstractBodyModel):
             v = velocity + pair[0] + jnp.where(free, rest[0], 0.0)
             ell = momentum_l + pair[1] + jnp.where(free, rest[1], 0.0)
             if faces is not None:
-                ell = ell + faces.turn(couple, moving=True)
-                most = faces.limit(impulse)
-
-                def face_sweep(_, held):
-                    ell, couple, _ = held
-                    more, holds = faces.hold(ell, couple, most)
-                    return ell + faces.turn(more - couple, moving=True), more, holds
-
-                ell, couple, holds = jax.lax.fori_loop(
-                    0, _FACE_SWEEPS, face_sweep, (ell, couple, faces.live)
-                )
-                holding = faces.holding(holds)
+                ell, couple, holding = faces.sweep(ell, couple, impulse)
             omega = jnp.linalg.solve(inertia, ell[..., None])[..., 0]
             relative = (v[index] + rot.spin_cross(omega[index], middle)) - (
                 v[j] + rot.spin_cross(omega[j], across)
@@ -1131,6 +1109,26 @@ class _FacesBetween(eqx.Module):
             jnp.where(on_b[:, None], couple, 0.0), b_body, self.count
         ) - _segment_sum(jnp.where(on_a[:, None], couple, 0.0), a_body, self.count)
 
+    def sweep(
+        self,
+        momentum_l: Float[Array, "b a"],
+        couple: Float[Array, "p a"],
+        impulse: Float[Array, "m d"],
+    ) -> tuple[Float[Array, "b a"], Float[Array, "p a"], Bool[Array, " m"]]:
+        """`_FACE_SWEEPS` sweeps of the couples within one of the friction's:
+        the bodies' angular momentum (without the couples so far) and the
+        couples after them, and which slots' faces hold."""
+        most = self.limit(impulse)
+
+        def face_sweep(_, held):
+            ell, couple, _ = held
+            more, holds = self.hold(ell, couple, most)
+            return ell + self.turn(more - couple, moving=True), more, holds
+
+        start = (momentum_l + self.turn(couple, moving=True), couple, self.live)
+        ell, couple, holds = jax.lax.fori_loop(0, _FACE_SWEEPS, face_sweep, start)
+        return ell, couple, self.holding(holds)
+
     def limit(self, impulse: Float[Array, "m d"]) -> Float[Array, " p"]:
         """N dt per face with the friction's `impulse` so far: their parts along n
         on B (-J at each slot) count with the pressure and the push."""
@@ -1180,6 +1178,31 @@ class _FacesBetween(eqx.Module):
             return jnp.zeros_like(moment)
         n = self.normal[jnp.minimum(self.pair, self.count * self.count - 1)]
         return jnp.sum(moment * n, -1, keepdims=True) * n
+
+
+def _pair_mu(params: Params, near, pairs, member, index):
+    """Each body particle's static and kinetic coefficients against the body it
+    touches (`near` its partners there): the smaller of the two bodies'."""
+    for mu in (params.rigid.mu_static, params.rigid.mu_kinetic):
+        partner = take_rows(jnp.where(member, mu[index], 0.0), pairs.index)
+        yield jnp.minimum(mu[index], _mean_over(near, partner))
+
+
+def _upper_side(pairs, body, partner_body, close, slot, count, values):
+    """Each body-particle slot as a particle of the upper body B of a pair A < B
+    (A the highest lower-index body it touches, `close` the pairs in contact
+    distance): the pair's key A count + B (count^2 where it touches no lower
+    body) and `values` (per particle) at the slots, 0 where none."""
+    below = pairs.valid & close & (partner_body >= 0) & (partner_body < body[:, None])
+    lower = jnp.max(jnp.where(below, partner_body, -1), axis=1)
+    resting = (lower >= 0).at[slot].get(mode="fill", fill_value=False)
+    key = jnp.where(lower >= 0, lower * count + body, count * count)
+    key = key.at[slot].get(mode="fill", fill_value=count * count)
+    picked = (
+        jnp.where(resting[:, None], x.at[slot].get(mode="fill", fill_value=0), 0.0)
+        for x in values
+    )
+    return jnp.where(resting, key, count * count), *picked
 
 
 def _face_reach(middle, pair, lever):
