@@ -34,6 +34,11 @@ class RigidState(eqx.Module):
         angular_impulse: time integral of `torque` since the start, shape (b, a).
         friction: friction force of the last step, shape (b, d).
         sliding: whether the body was in contact and sliding in the last step, (b,).
+        wall_push: the contact push (`RigidBodies._push`) that the bodies exerted on
+            each wall particle in the last step, its reaction shared equally among
+            the wall partners of each pushed body particle [N, or N/m in 2-D],
+            zero on other particles, shape (n, d). What a wall carries beyond its
+            pressure (`WallForce` adds it).
     """
 
     body: Int[Array, " n"]
@@ -49,6 +54,7 @@ class RigidState(eqx.Module):
     angular_impulse: Float[Array, "b a"]
     friction: Float[Array, "b d"]
     sliding: Bool[Array, " b"]
+    wall_push: Float[Array, "n d"]
 
 
 class ElasticState(eqx.Module):

@@ -96,6 +96,38 @@ def test_block_impact_impulse_within_momentum_bounds():
     assert s["block_y"].min() > 0.5 * case.config["block_size"] - 0.5 * 0.1
 
 
+@pytest.mark.parametrize("angle", [0.0, 20.0])
+def test_the_floor_under_a_resting_block_carries_its_weight(angle):
+    """A dry block (1 x 2 m, on its end at 20 degrees) resting on the floor: the
+    floor's `WallForce` (its pressure less the dry wall's, and the contact push
+    the block exerts on it) is the block's weight along the floor normal,
+    M g cos(theta), within 2 %. The push carries most of it (a dry block's
+    bottom particles carry little pressure); summed over all walls its reaction
+    is along the normal alone."""
+    tall = dict(block_height=2.0, friction_torque=True) if angle else {}
+    case = jaxmps.scenes.friction_tilt(angle=angle, t_end=0.1, **tall)
+    c, l0 = case.config, case.config["spacing"]
+    dry = case.scene.solver.surface_head * c["density"] * G * l0
+    floor = jaxmps.scenes.WallForce(
+        "floor", (-1.0, -0.6 * l0), (100.0, 0.1 * l0), l0, dry
+    )
+    out = jaxmps.simulate(
+        case.scene,
+        case.params,
+        case.state,
+        times=[0.05, 0.1],
+        observe=jaxmps.scenes.observe_probes((floor,)),
+    )
+    assert out.result == jaxmps.Result.successful
+    rigid = out.state.rigid
+    mass = c["density"] * c["density_ratio"] * float(jnp.sum(rigid.body >= 0)) * l0**2
+    weight = mass * G * math.cos(math.radians(angle))
+    np.testing.assert_allclose(np.asarray(out.saved["floor"]), weight, rtol=0.02)
+    push = np.asarray(jnp.sum(rigid.wall_push, axis=0))
+    assert -push[1] > 0.5 * weight, push
+    assert abs(push[0]) < 1e-6 * weight, push
+
+
 G = 9.81
 
 

@@ -194,8 +194,7 @@ class RigidBodies(AbstractBodyModel):
         (r_i - r_g) x u^_i. Then r_G^{k+1} = r_G^k + dt V_G' and the orientation
         turns by dt I_k^-1 L' (I_k the inertia at step k, eq. 2.5-9/10); the
         particles get v_i = V_G' + omega x (r_i - r_G) with omega = I_{k+1}^-1 L',
-        so a free body keeps L' exactly. The state keeps the centroid of the
-        particles and its velocity.
+        so a free body keeps L' exactly. The state holds the centroid's motion.
         """
         rs = state.rigid
         dim, count, dt = disc.dim, self.count, params.dt
@@ -227,7 +226,7 @@ class RigidBodies(AbstractBodyModel):
             rot.cross(lever, change - dt * params.gravity[None, :])
         )
 
-        velocity, momentum_l, contact, friction, sliding = self._touch(
+        velocity, momentum_l, contact, friction, sliding, reaction = self._touch(
             disc,
             params,
             state,
@@ -268,6 +267,7 @@ class RigidBodies(AbstractBodyModel):
             angular_impulse=rs.angular_impulse + dt * torque,
             friction=friction,
             sliding=sliding,
+            wall_push=reaction,
         )
         return dataclasses.replace(
             state,
@@ -283,7 +283,8 @@ class RigidBodies(AbstractBodyModel):
         `motion` = (centre-of-mass velocity, angular momentum) per body after the
         fluid, `bodies` = (mass, particle count, centre-of-mass offset, world
         inertia). Returns the motion after them, the wall contact, the wall
-        friction force and whether each body slides."""
+        friction force, whether each body slides and the push's reaction on the
+        wall particles (`RigidState.wall_push`)."""
         arm_k, rigid_k, lever = particles
         velocity, momentum_l = motion
         mass, number, offset_k, inertia_k = bodies
@@ -316,8 +317,11 @@ class RigidBodies(AbstractBodyModel):
             reach=reach,
         )
         walled = rub(velocity, momentum_l)
+        reaction = _wall_reaction(
+            state, load.pairs, from_wall, self.contact_distance * disc.spacing
+        )
         if self.friction is None or self.count < 2:
-            return *walled[:2], contact, *walled[2:]
+            return *walled[:2], contact, *walled[2:], reaction
         spare = self.friction.spare(
             contact,
             velocity - contact.wall_velocity,
@@ -349,7 +353,7 @@ class RigidBodies(AbstractBodyModel):
             jnp.where(anchored.reshape((-1,) + (1,) * (a.ndim - 1)), a, b)
             for a, b in zip(held, loose)
         )
-        return velocity, momentum_l, contact, friction, sliding
+        return velocity, momentum_l, contact, friction, sliding, reaction
 
     def _offset(self, params: Params, centre: Float[Array, "b d"]):
         """Each body's centre of mass from its particles' centroid, body frame."""
@@ -931,6 +935,29 @@ class RigidBodies(AbstractBodyModel):
             moment=moment,
         )
         return contact, touching_p
+
+
+def _wall_reaction(
+    state: State, pairs, push: Float[Array, "n d"], reach
+) -> Float[Array, "n d"]:
+    """The reaction of the walls' contact `push` on each wall particle [N]: each
+    body particle's push shared equally among its wall partners closer than
+    `reach` (those `_push` took its surface from), with the sign turned; zero on
+    other particles. Summed over all walls it is minus the push on the bodies."""
+    n, dim = push.shape
+    wall = jnp.logical_and(state.active, state.kind == int(Kind.WALL))
+    near = (
+        pairs.valid
+        & is_body(state)[:, None]
+        & take_rows(wall, pairs.index)
+        & (pairs.distance < reach)
+    )
+    share = push / jnp.maximum(jnp.sum(near, axis=1), 1)[:, None]
+    values = jnp.where(near[..., None], -share[:, None, :], 0.0)
+    target = jnp.where(near, pairs.index, n)
+    return jax.ops.segment_sum(
+        values.reshape(-1, dim), target.reshape(-1), num_segments=n + 1
+    )[:n]
 
 
 def _held(params: Params, time, velocity, momentum):

@@ -199,4 +199,5 @@ def _at_rest(
         angular_impulse=zeros_a,
         friction=zeros_b,
         sliding=jnp.zeros((count,), bool),
+        wall_push=jnp.zeros(reference.shape, dtype),
     )

@@ -33,7 +33,10 @@ STATE_FIELDS = (
 # /state fields run files of earlier versions lack (read as 0 from those).
 LATER_STATE_FIELDS = ("dt", "acceleration", "escaped")
 # Body sub-state fields run files of earlier versions lack (read as 0 from those).
-LATER_BODY_FIELDS = {"grains": ("reaction", "attached", "origin")}
+LATER_BODY_FIELDS = {
+    "grains": ("reaction", "attached", "origin"),
+    "rigid": ("wall_push",),
+}
 FRAME_FIELDS = ("time", "step", "position", "velocity", "pressure", "active")
 
 

@@ -887,7 +887,8 @@ def block_impact(**overrides) -> Case:
     """Seed 000 §8.4: a block (`block_size` square, `density_ratio` x `density`)
     moving at `velocity` straight down onto a fixed floor from `gap` above it, without
     gravity. The collision force is the floor's wall pressure summed over the contact
-    face (probe `wall_force`, N/m in 2-D); its time integral is the impulse, which
+    face and, for a rigid block, its contact push on the floor (probe `wall_force`,
+    N/m in 2-D; `WallForce`); its time integral is the impulse, which
     lies between rho A v (plastic) and 2 rho A v (elastic rebound).
 
     `body` is "rigid" or "elastic" (`youngs_modulus`, `poisson_ratio`; `substeps`

@@ -131,8 +131,9 @@ def tsunami_quay(**overrides) -> Case:
     `ship_angle` (rigid only) with a ship, `fluid_count`, `sea_level` and `sea_u` at
     `offshore_gauge` (depth over the sea bed, mean flow velocity), `quay_depth_k`
     and `quay_u_k` at the k-th quay gauge (k = 1..`gauges`; inundation depth over
-    the quay top) and, with a building, `building_force` (the pressure force on
-    its front face, N or N/m in 2-D; its time integral is the impulse).
+    the quay top) and, with a building, `building_force` (the force on its front
+    face, N or N/m in 2-D: the wall pressure and a rigid ship's contact push,
+    `WallForce`; its time integral is the impulse).
     """
     c = resolve("tsunami_quay", TSUNAMI_QUAY, overrides)
     g = _geometry(c)
