@@ -78,6 +78,9 @@ class ElasticState(eqx.Module):
         contact_force: the mean force the walls' contact push exerted on it in
             the last step [N] (zero unless `ElasticBodies.contact` is "push"),
             shape (m, d).
+        wall_push: that push's reaction on each wall particle, shared equally
+            among the wall partners of each pushed particle [N], zero on other
+            particles, shape (n, d) (as `RigidState.wall_push`).
     """
 
     index: Int[Array, " m"]
@@ -91,6 +94,7 @@ class ElasticState(eqx.Module):
     angular_velocity: Float[Array, "m a"]
     elastic_pressure: Float[Array, " m"]
     contact_force: Float[Array, "m d"]
+    wall_push: Float[Array, "n d"]
 
 
 class GrainState(eqx.Module):

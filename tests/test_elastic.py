@@ -576,6 +576,16 @@ def _impact(dt, **overrides):
     return wall, body, float(energy.max() / energy[0])
 
 
+def test_the_floor_carries_the_push_of_an_elastic_block_that_hits_it():
+    """Met by the contact push (a dry body's default), the block's wall pairs
+    are out of the pressure: the floor's `WallForce` is the push's reaction
+    alone, and its impulse is the block's momentum change (rel. 1e-6), between
+    the plastic and elastic bounds rho A v = 6.25 and 12.5 kN s/m."""
+    wall, body, _ = _impact(1e-3, substeps=1)
+    assert wall == pytest.approx(body, rel=1e-6)
+    assert 6.25e3 < body < 12.5e3, body
+
+
 @pytest.mark.slow
 def test_an_elastic_block_hits_a_wall_with_an_impulse_that_barely_depends_on_dt():
     """Seed 000 §3.2.3 (Table 3.2-4) on a coarser lattice (l0 = 0.25 m, 100

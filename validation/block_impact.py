@@ -5,10 +5,10 @@ The seed's 2.5 m block (l0 = 0.1 m, rho = 1000 kg/m^3, no gravity) falls at 1 m/
 onto a fixed floor from 0.1 m above it; the elastic one has E = 1e6 Pa, nu = 0.48.
 For each dt the impulse on the floor (integrated over 0.4 s: the contact is over
 by 0.27 s) and the body's momentum change M (v_end + 1) are divided by those at
-dt = 1e-4 s. The floor's force is its wall pressure summed over the contact face
-(the rigid block, and the elastic one met through the pressure,
-`contact="pressure"`), or the contact push's reaction (the elastic block's
-default, `contact="push"`). The elastic runs take one elastic sub-step per step
+dt = 1e-4 s. The floor's force (`WallForce`) is its wall pressure summed over the
+contact face and the contact push's reaction (the rigid block's push, and the
+elastic block's with `contact="push"`, its default, which leaves the wall
+pairs out of the pressure). The elastic runs take one elastic sub-step per step
 (the seed's scheme, `substeps=1`), so dt = 1e-2 s is refused; it is then run
 with the automatic sub-steps. Also: the block's largest kinetic energy after it
 first touches, over the one it came with (at most 1 for a passive contact).

@@ -28,7 +28,13 @@ from ..operators import Discretisation
 from . import rotation as rot
 from ._base import AbstractBodyModel
 from ._friction import Contact, Coulomb, SubmergedWeight
-from ._rigid import _contact_magnitude, _outward, _wall_surface, round_partners
+from ._rigid import (
+    _contact_magnitude,
+    _outward,
+    _wall_surface,
+    reaction_on_partners,
+    round_partners,
+)
 
 PairVectors = tuple[Float[Array, "m k"], ...]
 
@@ -444,13 +450,7 @@ class ElasticBodies(AbstractBodyModel):
         whether it has one, shape (m, ...)."""
         solid = self._solid(state)
         outward = _outward(pairs, jnp.where(solid, 0, -1))
-        wall = solid & (state.kind == int(Kind.WALL))
-        rows = jax.tree.map(lambda a: a[state.elastic.index], pairs)
-        close = (
-            rows.valid
-            & take_rows(wall, rows.index)
-            & (rows.distance < self.contact_distance * disc.spacing)
-        )
+        rows, close = self._close(disc, state, pairs)
         normal, gap, v_wall = _wall_surface(
             close,
             rows,
@@ -460,6 +460,18 @@ class ElasticBodies(AbstractBodyModel):
             round_partners(state, rows),
         )
         return normal, gap, v_wall, jnp.any(close, axis=1)
+
+    def _close(self, disc: Discretisation, state: State, pairs):
+        """The elastic particles' rows of the pairs, and which partners are walls
+        of no elastic body within `contact_distance`, shape (m, k)."""
+        wall = self._solid(state) & (state.kind == int(Kind.WALL))
+        rows = jax.tree.map(lambda a: a[state.elastic.index], pairs)
+        close = (
+            rows.valid
+            & take_rows(wall, rows.index)
+            & (rows.distance < self.contact_distance * disc.spacing)
+        )
+        return rows, close
 
     def _wall_push(self, disc: Discretisation, state: State, pairs, rho, full):
         """The contact push's acceleration of each elastic particle as a function
@@ -649,12 +661,20 @@ class ElasticBodies(AbstractBodyModel):
         (x, v, q, spin, pushed), pressure = jax.lax.scan(
             substep, carry, jnp.arange(self.substeps, dtype=dt.dtype)
         )
+        contact_force = rho[:, None] * disc.volume * pushed / dt
+        reaction = jnp.zeros_like(es.wall_push)
+        if push is not None:  # on the walls that pushed (`_wall_push`'s partners)
+            rows, close = self._close(disc, state, pairs)
+            reaction = reaction_on_partners(
+                close, rows.index, contact_force, reaction.shape[0]
+            )
         elastic = dataclasses.replace(
             es,
             rotation=q,
             angular_velocity=spin,
             elastic_pressure=pressure[-1],
-            contact_force=rho[:, None] * disc.volume * pushed / dt,
+            contact_force=contact_force,
+            wall_push=reaction,
         )
         return (
             dataclasses.replace(state, elastic=elastic),

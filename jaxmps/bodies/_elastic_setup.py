@@ -89,4 +89,5 @@ def elastic_state(
         angular_velocity=jnp.zeros((index.size, rot.spin_size(dim)), dtype),
         elastic_pressure=jnp.zeros((index.size,), dtype),
         contact_force=jnp.zeros((index.size, dim), dtype),
+        wall_push=jnp.zeros((ids.size, dim), dtype),
     )

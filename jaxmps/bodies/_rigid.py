@@ -944,7 +944,6 @@ def _wall_reaction(
     body particle's push shared equally among its wall partners closer than
     `reach` (those `_push` took its surface from), with the sign turned; zero on
     other particles. Summed over all walls it is minus the push on the bodies."""
-    n, dim = push.shape
     wall = jnp.logical_and(state.active, state.kind == int(Kind.WALL))
     near = (
         pairs.valid
@@ -952,9 +951,18 @@ def _wall_reaction(
         & take_rows(wall, pairs.index)
         & (pairs.distance < reach)
     )
-    share = push / jnp.maximum(jnp.sum(near, axis=1), 1)[:, None]
-    values = jnp.where(near[..., None], -share[:, None, :], 0.0)
-    target = jnp.where(near, pairs.index, n)
+    return reaction_on_partners(near, pairs.index, push, push.shape[0])
+
+
+def reaction_on_partners(
+    close: Bool[Array, "m k"], partner: Int[Array, "m k"], force, n: int
+) -> Float[Array, "n d"]:
+    """Minus each of m particles' `force` (m, d), shared equally among its
+    partners in `close` (slots `partner` of n), summed on each of the n slots."""
+    dim = force.shape[-1]
+    share = force / jnp.maximum(jnp.sum(close, axis=1), 1)[:, None]
+    values = jnp.where(close[..., None], -share[:, None, :], 0.0)
+    target = jnp.where(close, partner, n)
     return jax.ops.segment_sum(
         values.reshape(-1, dim), target.reshape(-1), num_segments=n + 1
     )[:n]

@@ -36,6 +36,7 @@ LATER_STATE_FIELDS = ("dt", "acceleration", "escaped")
 LATER_BODY_FIELDS = {
     "grains": ("reaction", "attached", "origin"),
     "rigid": ("wall_push",),
+    "elastic": ("wall_push",),
 }
 FRAME_FIELDS = ("time", "step", "position", "velocity", "pressure", "active")
 

@@ -887,8 +887,8 @@ def block_impact(**overrides) -> Case:
     """Seed 000 §8.4: a block (`block_size` square, `density_ratio` x `density`)
     moving at `velocity` straight down onto a fixed floor from `gap` above it, without
     gravity. The collision force is the floor's wall pressure summed over the contact
-    face and, for a rigid block, its contact push on the floor (probe `wall_force`,
-    N/m in 2-D; `WallForce`); its time integral is the impulse, which
+    face and the block's contact push on the floor (probe `wall_force`, N/m in
+    2-D; `WallForce`); its time integral is the impulse, which
     lies between rho A v (plastic) and 2 rho A v (elastic rebound).
 
     `body` is "rigid" or "elastic" (`youngs_modulus`, `poisson_ratio`; `substeps`
@@ -933,8 +933,6 @@ def block_impact(**overrides) -> Case:
         scene, params, state = _elastic_block(
             c, box, walls, wall_kind, domain, velocity
         )
-        if scene.elastic.contact == "push":  # the walls' reaction, not a pressure
-            wall_force = ElasticValue("wall_force", 0, "contact_force", dim - 1)
         probes = (
             wall_force,
             ElasticValue("block_y", 0, "centre", dim - 1),

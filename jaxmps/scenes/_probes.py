@@ -445,11 +445,12 @@ def _walls_in_box(state: State, lower, upper):
 class WallForce(AbstractProbe):
     """Force [N, or N/m in 2-D] on the pressure-wall particles inside the box
     [`lower`, `upper`]: the sum of P_i l0^(d-1) (seed 000: the collision force is the
-    wall pressure integrated over the contact face) and, in scenes with rigid
-    bodies, of the magnitudes of the contact push the bodies exerted on them
-    (`RigidState.wall_push`: where a body's particles carry no pressure, at its
-    dry corners and edges, the push alone holds it off the wall). Positive into
-    the wall. A probe
+    wall pressure integrated over the contact face) and, in scenes with bodies,
+    of the magnitudes of the contact push the bodies exerted on them
+    (`RigidState.wall_push`: a dry body's particles carry little pressure, and
+    the push holds it off the wall; `ElasticState.wall_push` with
+    `contact="push"`, which leaves those pairs out of the pressure). Positive
+    into the wall. A probe
     is a function of one state: the impulse on the segment is the time integral of
     the saved history (save every step for impacts, as `block_impact`'s test does).
 
@@ -473,10 +474,10 @@ class WallForce(AbstractProbe):
             jnp.maximum(state.pressure - self.dry, 0.0) if self.dry else state.pressure
         )
         force = jnp.sum(jnp.where(wall, excess, 0.0)) * area
-        if state.rigid is None:
-            return force
-        push = safe_norm(state.rigid.wall_push, wall, placeholder=0.0)
-        return force + jnp.sum(push)
+        for bodies in (state.rigid, state.elastic):
+            if bodies is not None:
+                force += jnp.sum(safe_norm(bodies.wall_push, wall, placeholder=0.0))
+        return force
 
 
 class WallPressure(AbstractProbe):
