@@ -110,7 +110,9 @@ def measure(
     wall = time.perf_counter() - start
     saved = {k: np.asarray(v) for k, v in run.saved.items()}
     ended = float(run.state.time)
-    keep = saved["time"] <= ended + 1e-9
+    # A run that stops early (throw=False) repeats its last state in the saves
+    # after it: keep only the save times it reached.
+    keep = times <= ended + 1e-6
     saved = {k: v[keep] for k, v in saved.items()}
     t = saved["time"]
     u = saved.get("ship_u", np.zeros_like(t))
@@ -177,12 +179,13 @@ def table(rows: list[dict]) -> str:
         at = "" if at is None else f"{at:.2f} ({r['t_at_quay']:.1f})"
         peak = r.get("building_peak_force")
         impulse = r.get("building_impulse")
+        ended = "" if r["result"] == "successful" else f" ({r['result']})"
         lines.append(
             f"| {r['label']} | {r['spacing']} | {shown} | {r['time_of_max']:.1f} | "
             f"{r['displacement_at_max']:.1f} | {at} | "
             f"{'' if peak is None else f'{peak / 1e3:.0f}'} | "
             f"{'' if impulse is None else f'{impulse / 1e3:.0f}'} | "
-            f"{r['ended_s']:.1f} | {r['steps']} | {r['wall_s']:.0f} |"
+            f"{r['ended_s']:.1f}{ended} | {r['steps']} | {r['wall_s']:.0f} |"
         )
     return "\n".join(lines)
 
