@@ -32,8 +32,13 @@ def test_sliding_acceleration(tilt_sweep):
     np.testing.assert_allclose(dx[fast], theory[fast], rtol=0.10)
 
 
-@pytest.mark.slow
-@pytest.mark.parametrize("torque", [False, True], ids=["no_torque", "torque"])
+@pytest.mark.parametrize(
+    "torque",
+    [
+        pytest.param(False, id="no_torque", marks=pytest.mark.long),
+        pytest.param(True, id="torque", marks=pytest.mark.slow),
+    ],
+)
 def test_sliding_distance_gradients_match_differences_and_theory(torque):
     """The gradient of the sliding distance by reverse mode, w.r.t. mu_k and both
     components of gravity, equals central finite differences and the uniform
@@ -518,7 +523,7 @@ def test_stack_of_three_blocks_sticks_below_its_coefficient():
     assert np.degrees(np.abs(np.asarray(out.saved.orientation))).max() < 0.5
 
 
-@pytest.mark.slow
+@pytest.mark.long
 def test_block_on_block_sticks_below_and_slides_above_their_coefficient():
     """A 0.5 x 0.25 m block on a 2 m base block (mu = 1.5 against the floor) on a
     slope of tan(theta) = 0.6: with mu = 0.66 between them (the smaller of the
@@ -566,7 +571,7 @@ def test_block_on_block_sticks_below_and_slides_above_their_coefficient():
         np.testing.assert_allclose(d1, d0, rtol=0, atol=1e-10 * d0.max())
 
 
-@pytest.mark.slow
+@pytest.mark.long
 def test_a_block_sliding_on_another_has_the_gradient_of_its_coulomb_law():
     """A 0.5 x 0.25 m block sliding on a 2 m base (tan = 0.6, mu = 0.3 between
     them): the reverse-mode derivative of its travel over 0.1 s with respect to
@@ -636,7 +641,7 @@ def test_a_frictionless_block_slides_down_another_without_lattice_drag():
     assert np.abs(saved["w"]).max() < 0.2
 
 
-@pytest.mark.slow
+@pytest.mark.long
 def test_a_block_slides_on_another_in_3d_with_the_whole_normal_force():
     """A 0.4 x 0.4 x 0.2 m block on a 2 x 1 x 0.2 m base (l0 = 0.1 m, both of
     twice the water's density, dry), mu = 0.3 between them, under gravity tilted

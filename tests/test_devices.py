@@ -252,7 +252,7 @@ def test_one_run_split_over_devices_equals_one_device():
     assert report["diff"] < 1e-12
 
 
-@pytest.mark.slow
+@pytest.mark.long
 def test_calibrating_a_batch_over_two_devices_equals_one_device():
     """Two dam breaks under different gravity share one viscosity: over two
     devices (one member each) the batched fit is the one-device fit to 1e-12;

@@ -337,7 +337,7 @@ def test_a_beam_swung_far_beyond_linear_theory_stays_bounded_and_unstretched():
     assert drop[-10:].min() < 0.01
 
 
-@pytest.mark.slow
+@pytest.mark.long
 def test_a_cantilever_meets_euler_bernoulli_within_5_percent_at_8_layers():
     """The `elastic_cantilever` scene (0.2 x 0.02 m, E = 1e7 Pa, nu = 0.3) released
     from rest under its weight swings about its static deflection: at 8 layers
@@ -586,7 +586,7 @@ def test_the_floor_carries_the_push_of_an_elastic_block_that_hits_it():
     assert 6.25e3 < body < 12.5e3, body
 
 
-@pytest.mark.slow
+@pytest.mark.long
 def test_an_elastic_block_hits_a_wall_with_an_impulse_that_barely_depends_on_dt():
     """Seed 000 §3.2.3 (Table 3.2-4) on a coarser lattice (l0 = 0.25 m, 100
     particles): the 2.5 m block at 1 m/s, E = 1e6 Pa, nu = 0.48, one elastic
@@ -868,7 +868,7 @@ def test_uneven_steps_keep_the_elastic_sub_step_and_stay_calm():
     assert float(jnp.max(out.saved)) < 10.0
 
 
-@pytest.mark.slow
+@pytest.mark.long
 def test_the_rubber_gate_opens_as_a_bent_beam_and_holds_the_water_above_it():
     """`elastic_gate` (Antoci et al. 2007) at l0 = 2.5 mm (two particles through
     the gate): the gate hangs from its clamped rows, its probes follow its lowest

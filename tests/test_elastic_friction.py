@@ -60,7 +60,7 @@ def test_an_elastic_block_on_a_tilted_floor_sticks_or_slides_as_coulomb_says():
     assert x[-1] < np.max(x) - 0.003
 
 
-@pytest.mark.slow
+@pytest.mark.long
 def test_the_slide_has_the_gradient_of_finite_differences_in_mu_kinetic():
     """d(block x after 0.1 s on a 45 degree floor)/d mu_kinetic by reverse mode
     against central differences of the same rollout, within 1e-4."""

@@ -170,7 +170,7 @@ def test_dry_faces_of_a_pressed_body_carry_its_own_surface_head():
         assert p[bottom].min() > 0.8 * rho * G * 0.6 * 0.1
 
 
-@pytest.mark.slow
+@pytest.mark.long
 def test_heavy_box_draft_at_finer_spacing_with_its_own_head():
     """A box of density ratio 0.8 at B/20 (l0 = 1 cm) displaces within 0.3 l0 of
     Archimedes' (measured +0.08 l0 over 3 s); with its dry faces at 0 it floated
@@ -214,7 +214,7 @@ def test_explicit_floating_box_draft_matches_archimedes():
     assert np.max(np.abs(s["box_angle"])) < math.radians(5.0)
 
 
-@pytest.mark.slow
+@pytest.mark.long
 def test_explicit_box_floats_high_where_the_water_is_compressible():
     """The cause of the explicit solver's draft error at the seeds' c = 10 m/s:
     the equation of state compresses 0.2 m of water by g H / c^2 = 2 % at the
@@ -267,7 +267,7 @@ def test_explicit_box_is_held_while_its_water_settles():
         jaxmps.scenes.floating_box(solver="explicit", spacing=0.02, settle=-1.0)
 
 
-@pytest.mark.slow
+@pytest.mark.long
 def test_explicit_box_released_onto_settled_water_floats_at_archimedes():
     """The explicit solver's box of density ratio 0.6 at B/20: released at once
     onto the unpressurised water it falls until the pressure builds up and stays
@@ -303,7 +303,7 @@ def test_floating_sound_speed_is_the_setting_when_given():
     assert float(shallow.params.dt) <= 0.4 * 0.02 / 10.0 + 1e-12
 
 
-@pytest.mark.slow
+@pytest.mark.long
 def test_floating_box_draft_at_finer_spacing_and_deeper_water():
     """At l0 = 1 cm (B / 20) in water three box heights deep the displaced depth
     stays within 0.3 l0 of Archimedes' (so the error falls in metres as l0
@@ -470,7 +470,7 @@ def _heave_box(**settings):
     )
 
 
-@pytest.mark.slow
+@pytest.mark.long
 def test_box_heave_decay_follows_linear_potential_flow_before_the_echo():
     """The B/T = 4 box (0.2 m x 0.1 m at half the water's density, 0.4 m of water in
     a 3 m tank) released at rest 1 cm below its Archimedes draft, at B/20 with the
@@ -595,7 +595,7 @@ def test_the_keel_gauge_reads_the_water_pressure_at_the_face():
     assert gauge == pytest.approx(1.0, abs=0.02)
 
 
-@pytest.mark.slow
+@pytest.mark.long
 def test_the_keel_gauge_at_finer_spacing_whatever_the_box_and_scheme():
     """At B/20 the default scheme's bottom-row excess grows as the box gets
     lighter, as for a fluid of the box's density inside it (measured 0.21 / 0.10

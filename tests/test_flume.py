@@ -180,7 +180,7 @@ def test_groundsill_settings_that_do_not_fit_are_refused(settings, match):
         jaxmps.scenes.flume(spacing=0.01, bed_length=1.0, **settings)
 
 
-@pytest.mark.slow
+@pytest.mark.long
 def test_brink_depth_of_the_free_overfall():
     """Water entering at the critical depth h_c = (q^2 / g)^(1/3) on a crest
     leaves it over a free overfall (the step) at the brink depth 0.715 h_c
@@ -251,7 +251,7 @@ def test_blocks_rest_in_their_recess_in_still_water(solver):
     assert tilt < 0.5
 
 
-@pytest.mark.slow
+@pytest.mark.long
 def test_blocks_hold_in_the_flow_over_them():
     """Seed 002's Case 3-2 protection (no washout at q = 0.006 m^2/s with 0.8
     cm of the last block's face exposed): here 1 cm of the 1.25 cm face exposed

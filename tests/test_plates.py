@@ -145,7 +145,7 @@ def test_a_plate_100_mm_down_lowers_the_first_mode_and_damps_it():
     assert plated_zeta > 2 * bare_zeta > 0
 
 
-@pytest.mark.slow
+@pytest.mark.long
 def test_a_plate_25_mm_down_lowers_the_response_at_every_frequency():
     """Seed 001 Fig. 4.3 (lower): plates 25 mm below the surface suppress the
     waves at every forcing frequency. Shaken at A = 2 mm for 4 s at l0 = 1 cm

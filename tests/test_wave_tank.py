@@ -88,7 +88,7 @@ def test_incident_wave_separation_recovers_synthetic_waves():
     assert reflection == pytest.approx(0.2, rel=1e-9)
 
 
-@pytest.mark.slow
+@pytest.mark.long
 def test_piston_wave_height_against_linear_theory():
     """kh = 1.42, l0 = 1 cm (20 particles deep), two strokes in one vmapped run:
     S = 1.5 and 3 cm (H_linear = 2.0 and 4.0 cm, H/lambda = 0.023 and 0.045). The
