@@ -75,7 +75,9 @@ def machine_info() -> dict:
         commit = _git("rev-parse", "--short", "HEAD")
         dirty = bool(_git("status", "--porcelain", "--untracked-files=no"))
     except (OSError, subprocess.CalledProcessError):
-        commit, dirty = None, None
+        # A copy of the tree without its history (a lent GPU machine): the caller
+        # may name the commit it copied.
+        commit, dirty = os.environ.get("JAXMPS_GIT_COMMIT"), None
     device = jax.devices()[0]
     return {
         "platform": platform.platform(),
