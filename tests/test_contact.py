@@ -761,3 +761,40 @@ def test_a_shaken_floor_carries_a_block_that_sticks_and_drags_one_that_slips(mu)
     else:
         assert np.max(np.abs(v)) > 0.5 * peak
         assert np.max(np.abs(np.diff(v) / np.diff(t))) < 1.05 * mu * G
+
+
+def test_a_block_falls_past_a_convex_corner_one_spacing_away_untouched():
+    """A dry block falling beside a step, its side face one spacing from the
+    step's face (the lattice's resting distance, no overlap): as its side
+    particles pass the step's top corner (a point, whose snapped normal is the
+    diagonal) nothing pushes it, so it falls freely: no sideways velocity or spin,
+    v_y = -g t. The corner particle's diagonal plane put a side particle 1.0 l0
+    away, 40 degrees off that diagonal, 0.76 l0 from it, and the push (stiff as
+    1/dt^2 on one particle in contact) threw the block sideways at metres per
+    second in one step (`bodies._rigid._flat`)."""
+    l0, dt, t_end = 0.1, 1e-3, 0.25
+    walls, wall_kind = geometry.tank([-1.0, 0.0], [1.0, 1.5], l0)
+    # the step: a wall layer on its top and side, dummies within
+    step = geometry.block([0.0, 0.0], [0.5, 0.4], l0)
+    inside = (step[:, 0] > 0.1) & (step[:, 1] < 0.3)
+    step_kind = np.where(inside, int(jaxmps.Kind.DUMMY), int(jaxmps.Kind.WALL))
+    box = geometry.block([-0.3, 0.5], [0.0, 0.8], l0)
+    position = np.concatenate([box, step, walls])
+    kind = np.concatenate([np.zeros(len(box), int), step_kind, wall_kind])
+    scene = jaxmps.make_scene(position, l0, ([-1.5, -0.5], [1.5, 2.0]))
+    params = jaxmps.make_params(2, dt=dt)
+    state = jaxmps.make_state(scene, position, kind)
+    body = np.r_[np.zeros(len(box), int), -np.ones(len(step) + len(walls), int)]
+    scene, params, state = jaxmps.add_rigid_bodies(
+        scene, params, state, body, density=1000.0
+    )
+    end = jaxmps.simulate(scene, params, state, round(t_end / dt)).state
+    rigid = end.rigid
+    # The walls' pressure on the side particles one spacing away pushes the
+    # block off the step by about 5 % of its weight near the corner (2-3 cm/s);
+    # the push off the chamfer was 0.3 m/s sideways, 5 rad/s and half of v_y.
+    np.testing.assert_allclose(float(rigid.velocity[0, 1]), -9.81 * t_end, rtol=0.02)
+    assert abs(float(rigid.velocity[0, 0])) < 0.05
+    assert abs(float(rigid.angular_velocity[0, 0])) < 0.1
+    # it passed the corner: its lowest side particle went below the step's top
+    assert float(rigid.centre[0, 1]) - 0.1 < 0.4

@@ -30,6 +30,7 @@ from ._base import AbstractBodyModel
 from ._friction import Contact, Coulomb, SubmergedWeight
 from ._rigid import (
     _contact_magnitude,
+    _flat,
     _outward,
     _wall_surface,
     reaction_on_partners,
@@ -448,8 +449,8 @@ class ElasticBodies(AbstractBodyModel):
         `contact_distance`): the facing walls' normal, the gap to their plane,
         their mean velocity (`_wall_surface`, as the rigid bodies' contact), and
         whether it has one, shape (m, ...)."""
-        solid = self._solid(state)
-        outward = _outward(pairs, jnp.where(solid, 0, -1))
+        solid = jnp.where(self._solid(state), 0, -1)
+        outward = _outward(pairs, solid)
         rows, close = self._close(disc, state, pairs)
         normal, gap, v_wall = _wall_surface(
             close,
@@ -458,6 +459,7 @@ class ElasticBodies(AbstractBodyModel):
             state.velocity,
             disc.spacing,
             round_partners(state, rows),
+            _flat(pairs, solid, outward, disc.spacing),
         )
         return normal, gap, v_wall, jnp.any(close, axis=1)
 
