@@ -17,6 +17,27 @@ from ._types import PairVectors
 # component into its consumers. Per-component sums also avoid a dot_general, which
 # some GPUs round to TF32 in float32.
 
+# Choice: every dot product of the solver asks for full precision. JAX lets a GPU
+# compute a float32 dot in TF32 (a 10-bit mantissa) by default: the CG's inner
+# products would stall above its tolerance, and a 40 m hull's lever arms rotated by
+# a TF32 product would sit centimetres off the body.
+HIGHEST = jax.lax.Precision.HIGHEST
+
+
+def einsum(subscripts: str, *operands: Array) -> Array:
+    """`jnp.einsum` at full precision (`HIGHEST`)."""
+    return jnp.einsum(subscripts, *operands, precision=HIGHEST)
+
+
+def matmul(a: Array, b: Array) -> Array:
+    """`a @ b` at full precision (`HIGHEST`)."""
+    return jnp.matmul(a, b, precision=HIGHEST)
+
+
+def vdot(a: Array, b: Array) -> Array:
+    """`jnp.vdot` at full precision (`HIGHEST`)."""
+    return jnp.vdot(a, b, precision=HIGHEST)
+
 
 def safe_norm(
     x: Float[Array, "*batch d"] | PairVectors,

@@ -14,7 +14,9 @@ from jaxtyping import Array, Float, Int
 from .._coupling import Coupling, FluidLoad
 from .._numerics import (
     component_dot,
+    einsum,
     is_concrete,
+    matmul,
     pair_differences,
     pair_sum,
     safe_norm,
@@ -127,13 +129,13 @@ def corrective_matrices(disc: Discretisation, reference, neighbours):
     ) * (dim / disc.n0)
     value, vector = jnp.linalg.eigh(a)
     inverse = jnp.where(value >= CORRECTION_FLOOR, 1.0 / value, 1.0)
-    return jnp.einsum("mij,mj,mkj->mik", vector, inverse, vector)
+    return einsum("mij,mj,mkj->mik", vector, inverse, vector)
 
 
 def _current_frame(correction, rotation, dim: int):
     """R_i C_i R_i^T: each particle's corrective matrix turned with it."""
     turn = rot.matrix(rotation, dim)
-    return jnp.einsum("mij,mjk,mlk->mil", turn, correction, turn)
+    return einsum("mij,mjk,mlk->mil", turn, correction, turn)
 
 
 def _pair_rotation(rotation, neighbours, dim: int):
@@ -269,7 +271,7 @@ def elastic_stress(
     ]
     stress = jnp.stack([jnp.stack(row, -1) for row in rows], -2)
     if correction is not None:
-        stress = stress @ _current_frame(correction, rotation, disc.dim)
+        stress = matmul(stress, _current_frame(correction, rotation, disc.dim))
     return 0.5 * (stress + jnp.swapaxes(stress, -1, -2))
 
 

@@ -15,7 +15,7 @@ import numpy as np
 from jaxtyping import Array, Bool, Float, Int, Shaped
 
 from .._coupling import Coupling, FluidLoad
-from .._numerics import pair_sum, safe_norm, take_rows
+from .._numerics import einsum, matmul, pair_sum, safe_norm, take_rows
 from .._params import Params
 from .._state import State
 from .._types import Kind
@@ -214,14 +214,14 @@ class RigidBodies(AbstractBodyModel):
         inertia_body = self._inertia(params, rs, particle_mass, mass, body_sum)
         inertia_k = _world(inertia_body, rotation_k, dim)
 
-        arm_k = jnp.einsum("nij,nj->ni", rotation_k[index], rs.reference)
-        offset_k = jnp.einsum("bij,bj->bi", rotation_k, offset_body)
+        arm_k = einsum("nij,nj->ni", rotation_k[index], rs.reference)
+        offset_k = einsum("bij,bj->bi", rotation_k, offset_body)
         rigid_k = rs.velocity[index] + rot.spin_cross(rs.angular_velocity[index], arm_k)
         change = state.velocity - rigid_k
         velocity_k = rs.velocity + rot.spin_cross(rs.angular_velocity, offset_k)
         velocity = velocity_k + body_sum(change) / number[:, None]
         lever = arm_k - offset_k[index]
-        momentum_k = jnp.einsum("bij,bj->bi", inertia_k, rs.angular_velocity)
+        momentum_k = einsum("bij,bj->bi", inertia_k, rs.angular_velocity)
         momentum_l = momentum_k + particle_mass[:, None] * body_sum(
             rot.cross(lever, change - dt * params.gravity[None, :])
         )
@@ -247,11 +247,11 @@ class RigidBodies(AbstractBodyModel):
         omega = jnp.linalg.solve(
             _world(inertia_body, rotation, dim), momentum_l[..., None]
         )[..., 0]
-        offset = jnp.einsum("bij,bj->bi", rotation, offset_body)
+        offset = einsum("bij,bj->bi", rotation, offset_body)
         centre = centre_of_mass - offset
         centre_velocity = velocity - rot.spin_cross(omega, offset)
 
-        arm = jnp.einsum("nij,nj->ni", rotation[index], rs.reference)
+        arm = einsum("nij,nj->ni", rotation[index], rs.reference)
         position = centre[index] + arm
         particle_velocity = centre_velocity[index] + rot.spin_cross(omega[index], arm)
         rigid = dataclasses.replace(
@@ -484,7 +484,7 @@ class RigidBodies(AbstractBodyModel):
         else:
             omega = jnp.linalg.solve(inertia, momentum_l[..., None])[..., 0]
             about_n = jnp.sum(omega * n, -1, keepdims=True) * n
-            spin = jnp.einsum("bij,bj->bi", inertia, about_n)
+            spin = einsum("bij,bj->bi", inertia, about_n)
         walls = params.dt * contact.moment
         total = spin - momentum_l - rot.cross(arm, impulse) + walls
         if dim == 3:  # normal forces give no moment about the normal
@@ -814,7 +814,7 @@ class RigidBodies(AbstractBodyModel):
             rt = rot.cross(arm, t)
             if faces is not None:
                 rt = jnp.where(holding[:, None], faces.about(rt), rt)
-            k = 1.0 / mass[b] + jnp.einsum("ni,nij,nj->n", rt, turn_per[b], rt)
+            k = 1.0 / mass[b] + einsum("ni,nij,nj->n", rt, turn_per[b], rt)
             return jnp.where(fixed, 0.0, slots[b] * k)
 
         def changes(impulse, among):
@@ -852,7 +852,7 @@ class RigidBodies(AbstractBodyModel):
                 # them with I_A + I_B
                 moving = holding & ~own_fixed & ~their_fixed
                 swing = rot.cross(middle - across, t)
-                common = jnp.einsum("ni,nij,nj->n", swing, together[index], swing)
+                common = einsum("ni,nij,nj->n", swing, together[index], swing)
                 share = jnp.maximum(slots[index], slots[j])
                 total = total + jnp.where(moving, share * common, 0.0)
             m_c = jnp.where(total > 0, 1.0 / jnp.where(total > 0, total, 1.0), 0.0)
@@ -1108,7 +1108,9 @@ class _FacesBetween(eqx.Module):
         )
         if n.shape[-1] == 3:  # in the plane normal to n (n n^T keeps it invertible)
             across = jnp.eye(3, dtype=n.dtype)[None] - n[:, :, None] * n[:, None, :]
-            compliance = across @ compliance @ across + n[:, :, None] * n[:, None, :]
+            compliance = matmul(matmul(across, compliance), across) + (
+                n[:, :, None] * n[:, None, :]
+            )
             existing = existing - jnp.sum(existing * n, -1, keepdims=True) * n
         eye = jnp.eye(compliance.shape[-1], dtype=n.dtype)
         compliance = jnp.where(live[:, None, None], compliance, eye)
@@ -1189,12 +1191,12 @@ class _FacesBetween(eqx.Module):
         most `most` (N dt) times its reach; and which faces hold."""
         a_body, b_body = self._ends()
         n = self.normal
-        omega = jnp.einsum("bij,bj->bi", self.turn_per, momentum_l)
+        omega = einsum("bij,bj->bi", self.turn_per, momentum_l)
         relative = omega[b_body] - omega[a_body]
         dim = n.shape[-1]
         if dim == 3:  # the spin about the normal is free
             relative = relative - jnp.sum(relative * n, -1, keepdims=True) * n
-        total = couple - jnp.einsum("pij,pj->pi", self.stiffness, relative)
+        total = couple - einsum("pij,pj->pi", self.stiffness, relative)
         total = total + self.existing
         if dim == 3:  # normal forces give no moment about the normal
             total = total - jnp.sum(total * n, -1, keepdims=True) * n
@@ -1473,8 +1475,8 @@ def _body_faces(state: State, outward: Float[Array, "n d"]) -> Float[Array, "n d
     member = is_body(state)
     index = jnp.where(member, state.rigid.body, 0)
     rotation = rot.matrix(state.rigid.orientation, dim)[index]
-    local = _snap(jnp.einsum("nji,nj->ni", rotation, outward))
-    faces = jnp.einsum("nij,nj->ni", rotation, local)
+    local = _snap(einsum("nji,nj->ni", rotation, outward))
+    faces = einsum("nij,nj->ni", rotation, local)
     return jnp.where(member[:, None], faces, _snap(outward))
 
 
@@ -1577,7 +1579,7 @@ def _snap(normal: Float[Array, "n d"]) -> Float[Array, "n d"]:
         [v for v in itertools.product((-1, 0, 1), repeat=dim) if any(v)], float
     )
     steps /= np.linalg.norm(steps, axis=1, keepdims=True)
-    best = jnp.argmax(normal @ jnp.asarray(steps, normal.dtype).T, axis=-1)
+    best = jnp.argmax(matmul(normal, jnp.asarray(steps, normal.dtype).T), axis=-1)
     nonzero = jnp.any(normal != 0, axis=-1, keepdims=True)
     return jnp.where(nonzero, jnp.asarray(steps, normal.dtype)[best], 0.0)
 
@@ -1601,7 +1603,7 @@ def _reach(
 def _world(inertia: Float[Array, "b a a"], rotation, dim: int):
     if dim == 2:
         return inertia
-    return rotation @ inertia @ jnp.swapaxes(rotation, -1, -2)
+    return matmul(matmul(rotation, inertia), jnp.swapaxes(rotation, -1, -2))
 
 
 def _pair_normal(pair, touching, normal, slots):

@@ -7,6 +7,8 @@ import jax
 import jax.numpy as jnp
 from jaxtyping import Array, Bool, Float, Int
 
+from .._numerics import vdot
+
 
 class SolveInfo(eqx.Module):
     """Diagnostics of one linear solve (forward pass only)."""
@@ -22,7 +24,7 @@ def _pcg(matvec, b, x0, precondition, rtol, atol, max_iterations):
     tol = jnp.maximum(rtol * b_norm, atol)
     r0 = b - matvec(x0)
     z0 = precondition(r0)
-    init = (x0, r0, z0, z0, jnp.vdot(r0, z0), jnp.asarray(0, jnp.int32))
+    init = (x0, r0, z0, z0, vdot(r0, z0), jnp.asarray(0, jnp.int32))
 
     def cond(carry):
         _, r, _, _, _, it = carry
@@ -31,16 +33,16 @@ def _pcg(matvec, b, x0, precondition, rtol, atol, max_iterations):
     def body(carry):
         x, r, z, p, rz, it = carry
         ap = matvec(p)
-        p_ap = jnp.vdot(p, ap)
+        p_ap = vdot(p, ap)
         alpha = jnp.where(p_ap > 0, rz / jnp.where(p_ap > 0, p_ap, 1.0), 0.0)
         x = x + alpha * p
         r = r - alpha * ap
         z_new = precondition(r)
-        rz_new = jnp.vdot(r, z_new)
+        rz_new = vdot(r, z_new)
         # Polak-Ribiere: equal to Fletcher-Reeves' rz_new / rz for an exactly
         # symmetric M, and robust when M is slightly not (a single-precision
         # preconditioner in a float64 solve: flexible CG, Notay 2000).
-        beta = jnp.vdot(r, z_new - z) / jnp.where(rz > 0, rz, 1.0)
+        beta = vdot(r, z_new - z) / jnp.where(rz > 0, rz, 1.0)
         beta = jnp.where(rz > 0, jnp.maximum(beta, 0.0), 0.0)
         return x, r, z_new, z_new + beta * p, rz_new, it + 1
 

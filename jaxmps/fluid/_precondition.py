@@ -11,7 +11,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Bool, Float, Int
 
-from .._numerics import pair_differences, take_rows
+from .._numerics import HIGHEST, pair_differences, take_rows
 from ..neighbours import Grid
 from ..operators import Discretisation
 
@@ -164,7 +164,7 @@ def _coarsen(coeff, radius, factor):
     coarse_shape = tuple(s // k for s, k in zip(shape, factor))
     blocked = split.transpose(order).reshape((-1,) + coarse_shape)
     return jnp.tensordot(
-        jnp.asarray(matrix, coeff.dtype), blocked, axes=1
+        jnp.asarray(matrix, coeff.dtype), blocked, axes=1, precision=HIGHEST
     ), coarse_radius
 
 

@@ -8,7 +8,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float
 
-from .._numerics import safe_norm
+from .._numerics import matmul, safe_norm
 from .._scene import Scene
 from .._state import State
 from .._types import Kind
@@ -332,11 +332,11 @@ class BodyPressure(AbstractProbe):
         dtype = state.position.dtype
         rigid = state.rigid
         turn = rotation_matrix(rigid.orientation[self.body], scene.dim)
-        n = turn @ jnp.asarray(self.normal, dtype)
+        n = matmul(turn, jnp.asarray(self.normal, dtype))
         n = n / jnp.linalg.norm(n)
-        face = rigid.centre[self.body] + turn @ jnp.asarray(self.point, dtype)
+        face = rigid.centre[self.body] + matmul(turn, jnp.asarray(self.point, dtype))
         offset = state.position - face[None, :]
-        h = offset @ n  # distance out of the face
+        h = matmul(offset, n)  # distance out of the face
         along = offset - h[:, None] * n[None, :]
         fluid = jnp.logical_and(state.active, state.kind == int(Kind.FLUID))
         near = fluid & (h > 0.0) & (h <= 2.0 * self.spacing)
