@@ -129,6 +129,8 @@ def measure(
         ended_s=ended,
         steps=int(run.state.step),
         wall_s=round(wall, 1),
+        # rows merge across runs of this script: each keeps the code it ran
+        commit=machine_info()["git_commit"],
         particles=int(case.state.active.sum()),
         max_fluid=int(saved["fluid_count"].max()),
         max_drift_velocity=float(u[peak]),
@@ -166,8 +168,8 @@ def table(rows: list[dict]) -> str:
         "| case | l0 [m] | max drift velocity [m/s] (seed) | at t [s] |"
         " displacement at max [m] | u 40 m onto the quay [m/s] (at t [s]) |"
         " building peak [kN/m; 3-D kN] | impulse [kN s/m; 3-D kN s] |"
-        " run to [s] | steps | wall [s] |",
-        "|---|---|---|---|---|---|---|---|---|---|---|",
+        " run to [s] | steps | wall [s] | commit |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for r in rows:
         eta = r["overrides"].get("tsunami_height")
@@ -185,8 +187,15 @@ def table(rows: list[dict]) -> str:
             f"{r['displacement_at_max']:.1f} | {at} | "
             f"{'' if peak is None else f'{peak / 1e3:.0f}'} | "
             f"{'' if impulse is None else f'{impulse / 1e3:.0f}'} | "
-            f"{r['ended_s']:.1f}{ended} | {r['steps']} | {r['wall_s']:.0f} |"
+            f"{r['ended_s']:.1f}{ended} | {r['steps']} | {r['wall_s']:.0f} | "
+            f"{r.get('commit', '')} |"
         )
+    if any("commit" not in r for r in rows):
+        lines += [
+            "",
+            "A row with no commit was measured before the rows recorded theirs "
+            "(its date is in this file's git history).",
+        ]
     return "\n".join(lines)
 
 
