@@ -564,14 +564,9 @@ class RigidBodies(AbstractBodyModel):
         )
         on_wall = near & take_rows(wall, pairs.index)
         velocity = jnp.where(member[:, None], rigid_k, state.velocity)
+        flat = _flat(pairs, _solids(state), outward, l0)
         normal, gap, v_wall = _wall_surface(
-            on_wall,
-            pairs,
-            outward,
-            velocity,
-            l0,
-            round_partners(state, pairs),
-            _flat(pairs, _solids(state), outward, l0),
+            on_wall, pairs, outward, velocity, l0, round_partners(state, pairs), flat
         )
         pressed = jnp.zeros_like(near)
         if self.count >= 2:  # with no pair of bodies nothing to compute
@@ -1320,13 +1315,18 @@ def _solids(state: State) -> Int[Array, " n"]:
     return jnp.where(solid, 0, jnp.where(member, state.rigid.body + 1, -1))
 
 
+def _same_group(pairs, group: Int[Array, " n"]) -> Bool[Array, "n k"]:
+    """Which partners belong to the particle's own `group` (-1: none)."""
+    return (take_rows(group + 1, pairs.index) - 1 == group[:, None]) & (
+        group[:, None] >= 0
+    )
+
+
 def _outward(pairs, group: Int[Array, " n"]) -> Float[Array, "n d"]:
     """Each particle's outward unit normal from the particles of its own `group`
     (-1: none): minus the sum of the unit vectors towards them (zero inside a
     solid, where they cancel). A straight wall's particles all get its normal."""
-    own = (take_rows(group + 1, pairs.index) - 1 == group[:, None]) & (
-        group[:, None] >= 0
-    )
+    own = _same_group(pairs, group)
     inward = pair_sum(
         jnp.where(own & pairs.valid, 1.0 / pairs.distance, 0.0), pairs.offset
     )
@@ -1561,9 +1561,7 @@ def _flat(pairs, group: Int[Array, " n"], outward, l0) -> Bool[Array, " n"]:
     """
     dim = outward.shape[-1]
     face = _snap(outward)
-    own = (take_rows(group + 1, pairs.index) - 1 == group[:, None]) & (
-        group[:, None] >= 0
-    )
+    own = _same_group(pairs, group)
     across = sum(o * face[:, a, None] for a, o in enumerate(pairs.offset))
     in_plane = (
         own & pairs.valid & (pairs.distance < 1.5 * l0) & (jnp.abs(across) < 0.5 * l0)
