@@ -338,3 +338,53 @@ def test_slotwise_product_of_a_large_system_equals_the_gathered_row_sums(rng):
     np.testing.assert_allclose(
         system.matvec(jnp.asarray(p)), expected, rtol=1e-12, atol=1e-12
     )
+
+
+def test_a_fluid_particle_among_dummies_only_leaves_the_system_unbroken(rng):
+    """A fluid particle deep in a wall's dummies (its number density full, no
+    pressure-carrying neighbour) has an empty row: it takes its Dirichlet value,
+    the solve converges, and every other particle's pressure is the one it has
+    with that particle taken out of the run. (Before: 0 = b_i, and CG returned
+    NaN; seen when a tsunami drove a particle through a quay's wall layer.)"""
+    from jaxmps.geometry import block, tank
+
+    l0, width, depth = 0.01, 0.1, 0.1
+    fluid = block([0, 0], [width, depth], l0)
+    walls, wk = tank([0, 0], [width, depth + 3 * l0], l0)
+    plug = block([width + 6 * l0, 0], [width + 15 * l0, 9 * l0], l0)  # 9 x 9 dummies
+    trapped = int(np.argmin(np.linalg.norm(plug - plug.mean(axis=0), axis=1)))
+    plug[trapped] += 0.1 * l0
+    pos = np.concatenate([fluid, walls, plug])
+    kind = np.concatenate(
+        [np.zeros(len(fluid)), wk, np.full(len(plug), int(jaxmps.Kind.DUMMY))]
+    ).astype(np.int32)
+    i = len(fluid) + len(walls) + trapped
+    kind[i] = int(jaxmps.Kind.FLUID)
+    domain = (np.array([-5 * l0] * 2), np.array([width + 20 * l0, depth + 10 * l0]))
+    scene = jaxmps.make_scene(pos, l0, domain)
+    state = jaxmps.make_state(scene, pos, kind)
+    x, kind = state.position, state.kind
+
+    def solve(active, b, boundary):
+        nbrs = neighbours.build(scene.grid, x, active, scene.max_neighbours, scene.r_e)
+        pairs = make_pairs(nbrs.index, x, scene.weight, scene.r_e)
+        surface = detect_surface(
+            FreeSurface(), 0.97, scene.n0, number_density(pairs), kind, active, pairs
+        )
+        p, info = solve_pressure(
+            pairs, kind, active, surface, b, jnp.zeros(len(x)), 1e-12, 0.0, 5000,
+            boundary=boundary,
+        )  # fmt: skip
+        return p, info, pairs, surface
+
+    b = jnp.asarray(rng.normal(size=len(x)))
+    boundary = jnp.full(len(x), 40.0)
+    p, info, pairs, surface = solve(state.active, b, boundary)
+    partners = np.asarray(kind)[np.asarray(pairs.index[i])[np.asarray(pairs.valid[i])]]
+    assert len(partners) > 0 and np.all(partners == int(jaxmps.Kind.DUMMY))
+    assert not bool(surface[i])  # full number density: not a surface particle
+    assert bool(info.converged) and np.isfinite(np.asarray(p)).all()
+    assert float(p[i]) == 40.0
+    alone, info_alone, _, _ = solve(state.active.at[i].set(False), b, boundary)
+    rest = np.arange(len(x)) != i
+    np.testing.assert_allclose(np.asarray(p)[rest], np.asarray(alone)[rest], rtol=1e-10)

@@ -48,8 +48,8 @@ class PressureSystem(eqx.Module):
 
     @property
     def inverse_diagonal(self) -> Float[Array, " n"]:
-        # A row in S with no pressure-carrying neighbour cannot occur for beta < 1
-        # (its number density would flag it as surface); guard it anyway.
+        # `assemble_pressure_system` leaves rows with no pressure-carrying
+        # neighbour out of S; a system built otherwise is guarded anyway.
         ok = self.in_system & (self.diag > 0)
         return jnp.where(ok, 1.0 / jnp.where(ok, self.diag, 1.0), 1.0)
 

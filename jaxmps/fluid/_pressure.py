@@ -32,12 +32,18 @@ def assemble_pressure_system(
     `SemiImplicit.dummy_head`'s hydrostatic one, adds sum_j c_ij q_ij to the
     right-hand side and leaves A as it is). Rows outside S are the identity, so
     their pressure solves to 0.
+
+    A particle with no pressure-carrying neighbour is not in S either, though its
+    number density (dummies count) can be full: a fluid particle that has crossed
+    a wall's first layer into the dummies behind it. Its row would be 0 = b_i and
+    the solve would break down (a NaN in a 3-D tsunami run); it takes its
+    Dirichlet value, as a surface particle does.
     """
     carries = jnp.logical_and(active, is_kind(kind, PRESSURE_KINDS))
-    in_system = jnp.logical_and(carries, ~surface)
     c = pairs.weight if coefficient is None else coefficient
     coupling = jnp.where(pairs.valid & take_rows(carries, pairs.index), c, 0.0)
     diag = jnp.sum(coupling, axis=1)
+    in_system = carries & ~surface & (diag > 0)
     off = jnp.where(take_rows(in_system, pairs.index), coupling, 0.0)
     return PressureSystem(index=pairs.index, off=off, diag=diag, in_system=in_system)
 
