@@ -93,3 +93,52 @@ def test_bad_inputs_raise_clear_errors():
     other, _, _ = small_tank(width=0.05)
     with pytest.raises(ValueError, match="Scene expects"):
         jaxmps.simulate(other, params, state, 2, 2)
+
+
+def test_collision_guard_closes_the_holes_of_a_3d_wall():
+    """The pair guard alone (0.5 l0) lets a fluid particle through the middle of a
+    3-D wall's lattice cell (l0 / sqrt(2) from its corners, and so through every
+    dummy layer behind it); the wall-plane guard reverses its approach with the
+    restitution, relative to a moving wall, once within 0.5 l0 of the plane. It
+    does not act twice where the pair guard has acted, nor on a particle farther
+    off or moving away."""
+    from jaxmps.fluid import CollisionGuard
+    from jaxmps.geometry import block
+    from jaxmps.neighbours import build
+    from jaxmps.operators import make_pairs
+
+    l0 = 1.0
+    solid = block([0.0, 0.0, -3 * l0], [12 * l0, 12 * l0, 0.0], l0)  # centres -0.5 ..
+    kind = np.where(solid[:, 2] > -l0, int(jaxmps.Kind.WALL), int(jaxmps.Kind.DUMMY))
+    plane = -0.5 * l0
+    fluid = np.array(
+        [
+            [3.0, 3.0, plane + 0.3],  # above a cell's middle, 0.3 l0 off the plane
+            [8.5, 3.5, plane + 0.3],  # above a wall particle, 0.3 l0 off
+            [3.0, 8.0, plane + 0.8],  # above a cell's middle, 0.8 l0 off
+            [8.0, 8.0, plane + 0.3],  # above a cell's middle, moving away
+        ]
+    )
+    x = np.concatenate([solid, fluid])
+    kind = np.concatenate([kind, np.zeros(len(fluid), int)]).astype(np.int32)
+    domain = (np.array([-3.0, -3.0, -6.0]), np.array([15.0, 15.0, 6.0]))
+    scene = jaxmps.make_scene(x, l0, domain)
+    x = jnp.asarray(x)
+    active = jnp.ones(len(x), bool)
+    nbrs = build(scene.grid, x, active, scene.max_neighbours, scene.r_e)
+    pairs = make_pairs(nbrs.index, x, scene.weight, scene.r_e)
+    u = np.zeros_like(np.asarray(x))
+    u[-4:] = [[0.2, 0.0, -1.0], [0.0, 0.0, -1.0], [0.0, 0.0, -1.0], [0.0, 0.0, 1.0]]
+    guard, pairs_only = CollisionGuard(), CollisionGuard(wall_plane=False)
+    disc, kind = scene.discretisation, jnp.asarray(kind)
+    before = pairs_only(disc, jnp.asarray(u), kind, active, pairs)
+    after = guard(disc, jnp.asarray(u), kind, active, pairs)
+    np.testing.assert_allclose(before[-4], [0.2, 0.0, -1.0])  # through the hole
+    np.testing.assert_allclose(after[-4], [0.2, 0.0, 0.2], atol=1e-12)  # e = 0.2
+    np.testing.assert_allclose(before[-3], [0.0, 0.0, 0.2], atol=1e-12)
+    np.testing.assert_allclose(after[-3], before[-3], atol=1e-12)  # not twice
+    np.testing.assert_allclose(after[-2:], u[-2:])
+    # A wall moving down at 0.5 m/s: the approach is 0.5 m/s, reversed to 0.1.
+    u[: len(solid), 2] = -0.5
+    after = guard(disc, jnp.asarray(u), kind, active, pairs)
+    np.testing.assert_allclose(after[-4], [0.2, 0.0, -0.4], atol=1e-12)
