@@ -369,7 +369,13 @@ def test_a_fluid_particle_among_dummies_only_leaves_the_system_unbroken(rng):
         nbrs = neighbours.build(scene.grid, x, active, scene.max_neighbours, scene.r_e)
         pairs = make_pairs(nbrs.index, x, scene.weight, scene.r_e)
         surface = detect_surface(
-            FreeSurface(), 0.97, scene.n0, number_density(pairs), kind, active, pairs
+            FreeSurface(),
+            jnp.asarray(0.97),
+            scene.n0,
+            number_density(pairs),
+            kind,
+            active,
+            pairs,
         )
         p, info = solve_pressure(
             pairs, kind, active, surface, b, jnp.zeros(len(x)), 1e-12, 0.0, 5000,

@@ -143,11 +143,14 @@ class CollisionGuard(eqx.Module):
         fixed = pairs.valid & take_rows(fixed, pairs.index)
         w = jnp.where(fixed, pairs.weight, 0.0)
         away = -pair_sum(w, pairs.offset)  # from the walls towards i
-        size = jnp.sqrt(jnp.sum(away * away, axis=-1, keepdims=True))
+        square = jnp.sum(away * away, axis=-1)
         # no direction amid walls on both sides (a gap, or deep in a wall): the
         # mean offset is at least a quarter of l0 from one flat wall
-        has_normal = size[:, 0] > 0.25 * jnp.sum(w, axis=1) * l0
-        normal = away / jnp.where(has_normal[:, None], size, 1.0)
+        has_normal = square > (0.25 * jnp.sum(w, axis=1) * l0) ** 2
+        has_normal = has_normal & (square > 0)
+        # (a square root of 0 would have a non-finite derivative)
+        size = jnp.sqrt(jnp.where(has_normal, square, 1.0))
+        normal = away / size[:, None]
         height = -sum(o * normal[:, c, None] for c, o in enumerate(pairs.offset))
         aside = component_dot(pairs.offset, pairs.offset) - height * height
         half_diagonal = 0.5 * (disc.dim - 1) ** 0.5 * l0
