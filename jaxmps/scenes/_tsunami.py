@@ -443,12 +443,16 @@ def _building(c: dict, g: dict):
 
 def _pool(c: dict, g: dict, series: InflowParams) -> int:
     """Inactive slots for the inflow: the `pool` setting, or 1.1 x the volume the
-    wave brings in (its discharge integrated) in particles."""
+    wave brings in up to `t_end` (its discharge integrated) in particles. A run
+    taken further than `t_end` may exhaust it (`Result.pool_exhausted` names
+    the setting)."""
     if c["pool"] is not None:
         return int(c["pool"])
     l0, dim = c["spacing"], int(c["dim"])
+    t_end = float(g["t_end"])
     t = np.asarray(series.times)
-    q = np.asarray(series.velocity) * np.asarray(series.depth)
+    t = np.unique(np.concatenate([t[t < t_end], [min(t_end, t[-1])]]))
+    q = np.interp(t, series.times, np.asarray(series.velocity) * series.depth)
     volume = float(np.sum(0.5 * (q[1:] + q[:-1]) * np.diff(t)))
     across = g["width"] / l0 if dim == 3 else 1.0
     columns = math.ceil(_inflow_top(g, l0) / l0) * across
