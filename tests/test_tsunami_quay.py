@@ -4,6 +4,7 @@ wave, its refusals, and a 2-D run in which the wave lifts the ship onto the quay
 
 import math
 
+import equinox as eqx
 import numpy as np
 import pytest
 
@@ -57,6 +58,27 @@ def test_the_pool_holds_what_the_wave_brings_up_to_t_end(t_end):
     pool = case.scene.capacity - int(case.state.active.sum())
     # 10 % spare and four columns of the inflow's height (h + eta + 2 l0 = 22 l0)
     assert brought <= pool <= 1.1 * brought + 4 * 22 + 1
+
+
+@pytest.mark.parametrize("dim, l0", [(2, 0.02), (3, 0.05)])
+def test_column_depth_reads_the_water_in_the_column_not_the_spray(dim, l0):
+    """Still water 0.2 m deep: the column over a particle holds 0.2 / l0 of them,
+    so it reads 0.2 m; one particle thrown 1 m above it adds l0 (the highest
+    particle, `WaterLevel`, would read 1 m); a dry column reads 0."""
+    case = jaxmps.scenes.hydrostatic(dim=dim, spacing=l0)
+    state = case.state
+    fluid = np.flatnonzero(np.asarray(state.kind) == int(jaxmps.Kind.FLUID))
+    x = np.asarray(state.position)[fluid[0], :-1]
+    at = jaxmps.scenes.ColumnDepth("depth", tuple(x), 0.0, l0)
+    assert float(at(case.scene, state)) == pytest.approx(0.2, abs=1e-9)
+    far = fluid[-1]  # a particle from another column, thrown over this one
+    spray = state.position.at[far].set(np.append(x, 1.0))
+    state = eqx.tree_at(lambda s: s.position, state, spray)
+    assert float(at(case.scene, state)) == pytest.approx(0.2 + l0, abs=1e-9)
+    high = jaxmps.scenes.WaterLevel("level", float(x[0]), 0.0, l0)
+    assert float(high(case.scene, state)) == pytest.approx(1.0 + 0.5 * l0)
+    dry = jaxmps.scenes.ColumnDepth("dry", tuple(x), 0.3, l0)
+    assert float(dry(case.scene, case.state)) == 0.0
 
 
 @pytest.mark.parametrize(

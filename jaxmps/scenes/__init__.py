@@ -45,6 +45,7 @@ from ._probes import BedLowering as BedLowering
 from ._probes import BodiesMoved as BodiesMoved
 from ._probes import BodyPressure as BodyPressure
 from ._probes import BodyValue as BodyValue
+from ._probes import ColumnDepth as ColumnDepth
 from ._probes import DisplacedDepth as DisplacedDepth
 from ._probes import Displacement as Displacement
 from ._probes import ElasticAmplitude as ElasticAmplitude

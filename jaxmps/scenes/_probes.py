@@ -84,6 +84,28 @@ class WaterLevel(AbstractProbe):
         return jnp.where(jnp.isfinite(level), level, 0.0)
 
 
+class ColumnDepth(AbstractProbe):
+    """Depth [m] of the water in the column l0 wide (l0 x l0 in 3-D) over `point`
+    (its first coordinates: x, or x and y), counted by volume above `floor`: the
+    number of fluid particles in it times l0, each holding l0^d. Spray over the
+    column adds l0 per particle where `WaterLevel`'s highest particle would read
+    its height; a floating body in the column does not count."""
+
+    name: str
+    point: tuple[float, ...]
+    floor: float
+    spacing: float
+
+    def __call__(self, scene: Scene, state: State):
+        del scene
+        fluid = jnp.logical_and(state.active, state.kind == int(Kind.FLUID))
+        inside = fluid & (state.position[:, -1] > self.floor)
+        for axis, at in enumerate(self.point):
+            near = jnp.abs(state.position[:, axis] - at) < 0.5 * self.spacing
+            inside = inside & near
+        return jnp.sum(inside).astype(state.position.dtype) * self.spacing
+
+
 class FlowVelocity(AbstractProbe):
     """Mean velocity component `axis` of the fluid within l0/2 of `x` (first axis)
     [m/s], over the whole column (and, in 3-D, the whole width); zero where it is

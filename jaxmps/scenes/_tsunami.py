@@ -17,12 +17,12 @@ from ._case import Case
 from ._common import boundary_layers, case_params, resolve, whole
 from ._probes import (
     BodyValue,
+    ColumnDepth,
     ElasticValue,
     FlowVelocity,
     FluidCount,
     WallForce,
     WallPressure,
-    WaterLevel,
 )
 
 # Lengths and times are the prototype's (full scale) and are Froude-scaled by
@@ -131,7 +131,9 @@ def tsunami_quay(**overrides) -> Case:
     `ship_angle` (rigid only) with a ship, `fluid_count`, `sea_level` and `sea_u` at
     `offshore_gauge` (depth over the sea bed, mean flow velocity), `quay_depth_k`
     and `quay_u_k` at the k-th quay gauge (k = 1..`gauges`; inundation depth over
-    the quay top) and, with a building, `building_force` (the force on its front
+    the quay top); depths are the water in a column l0 wide (`ColumnDepth`, on
+    the channel's centre line in 3-D), velocities the mean across the channel;
+    and, with a building, `building_force` (the force on its front
     face, N or N/m in 2-D: the wall pressure and a rigid ship's contact push,
     `WallForce`; its time integral is the impulse).
     """
@@ -498,14 +500,17 @@ def _probes(c: dict, g: dict, dry: float) -> tuple:
             ElasticValue("ship_u", 0, "velocity", 0),
             ElasticValue("ship_w", 0, "velocity", up),
         )
+    # Depth gauges count the water in a column (on the centre line in 3-D),
+    # where the highest particle across a 3-D channel would read a splash.
+    centre = (0.5 * g["width"],) if dim == 3 else ()
     sea_x = edge - g["offshore_gauge"] + 0.5 * l0
     gauges = [
-        WaterLevel("sea_level", sea_x, 0.0, l0),
+        ColumnDepth("sea_level", (sea_x, *centre), 0.0, l0),
         FlowVelocity("sea_u", sea_x, l0),
     ]
     for k in range(1, int(c["gauges"]) + 1):
         x = edge + k * g["gauge_spacing"] - 0.5 * l0
-        gauges.append(WaterLevel(f"quay_depth_{k}", x, quay_top, l0))
+        gauges.append(ColumnDepth(f"quay_depth_{k}", (x, *centre), quay_top, l0))
         gauges.append(FlowVelocity(f"quay_u_{k}", x, l0))
     probes = (*ship, FluidCount("fluid_count"), *gauges)
     if g["building_depth"] is None:
