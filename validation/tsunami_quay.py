@@ -28,7 +28,8 @@ A ship that reaches the quay's landward end falls off it and leaves the domain:
 the run stops there (its maximum velocity was reached before).
 
 Run: python validation/tsunami_quay.py [--groups height draft gap building]
-[--spacing 0.5] [--t-end 25] [--save 0.1] [--fresh] [--out NAME] (writes
+[--spacing 0.5] [--t-end 25] [--save 0.1] [--fresh] [--labels LABEL ...]
+[--out NAME] (writes
 results/tsunami_quay_cpu.{json,md}, or NAME's, after each run, merging rows
 run before; runs already there with the same settings are reused unless
 --fresh).
@@ -206,6 +207,9 @@ def main():
     parser.add_argument("--t-end", type=float, default=25.0)
     parser.add_argument("--save", type=float, default=0.1, help="probe interval [s]")
     parser.add_argument("--fresh", action="store_true")
+    parser.add_argument(
+        "--labels", nargs="+", default=None, help="only these runs of the groups"
+    )
     parser.add_argument("--out", default="tsunami_quay_cpu", help="results name")
     args = parser.parse_args()
     path = HERE / "results" / args.out
@@ -224,6 +228,8 @@ def main():
     }
     for group in args.groups:
         for label, overrides in runs(group):
+            if args.labels is not None and label not in args.labels:
+                continue
             # A run another group already made (the same settings) is reused.
             key = json.dumps(overrides, sort_keys=True)
             if key not in measured:
