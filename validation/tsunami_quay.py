@@ -14,6 +14,9 @@ Groups (each a set of runs of the scene with its defaults except as listed):
   building  a building 9 m deep, 38 m high, 40 m from the quay edge, hit by the
             tsunami alone and with the ship (seed §5: the impulse with the ship
             exceeds the tsunami-only impulse).
+  body      the building hit by a rigid and by an elastic ship, each at two
+            largest steps (seed 000 §5: the elastic ship's peak force is lower
+            and does not depend on the step);
   building3d  the same in 3-D, in a reduced channel (BUILDING_3D: a 40 m ship,
             a building 12 m long, l / L = 0.3), run at --spacing 2 (2
             particles across the draft: what 2 CPU cores run in about 20 min
@@ -28,8 +31,8 @@ A ship that reaches the quay's landward end falls off it and leaves the domain:
 the run stops there (its maximum velocity was reached before).
 
 Run: python validation/tsunami_quay.py [--groups height draft gap building]
-[--spacing 0.5] [--t-end 25] [--save 0.1] [--fresh] [--labels LABEL ...]
-[--out NAME] (writes
+[--spacing 0.5] [--t-end 25] [--save 0.1] [--every-step] [--fresh]
+[--labels LABEL ...] [--out NAME] (writes
 results/tsunami_quay_cpu.{json,md}, or NAME's, after each run, merging rows
 run before; runs already there with the same settings are reused unless
 --fresh).
@@ -87,6 +90,18 @@ def runs(group: str) -> list[tuple[str, dict]]:
             ("building, ship", building),
             ("building, no ship", {**building, "ship": False}),
         ]
+    if group == "body":
+        # Rigid against elastic ship at the building, each at the elastic
+        # ship's coupling step limit (4.33 ms at l0 = 1 m) and at half of it.
+        building = dict(tsunami_height=13.5, building_depth=9.0, quay_length=100.0)
+        return [
+            (
+                f"building, {body} ship, dt_max {dt * 1e3:.2f} ms",
+                {**building, "ship_body": body, "dt_max": dt},
+            )
+            for body in ("rigid", "elastic")
+            for dt in (4.3e-3, 2.15e-3)
+        ]
     if group == "building3d":
         return [
             ("3-D building, ship", BUILDING_3D),
@@ -95,26 +110,63 @@ def runs(group: str) -> list[tuple[str, dict]]:
     raise ValueError(f"unknown group {group!r}")
 
 
+def run_saving(case, observe, t_end: float, save: float, every_step: bool):
+    """Run the case to `t_end`, observing every `save` seconds or (`every_step`)
+    after every step, in chunks of steps, so that an impact's force peak and
+    impulse are not sampled at a coarse interval (the last chunk runs on past
+    `t_end`; its steps after it are not counted). Returns (saved histories up
+    to where the run got, end time [s], steps to it, result, wall time [s])."""
+    start = time.perf_counter()
+    if not every_step:
+        times = np.arange(1, round(t_end / save) + 1) * save
+        run = jaxmps.simulate(
+            case.scene,
+            case.params,
+            case.state,
+            times=times,
+            observe=observe,
+            throw=False,
+        )
+        saved = {k: np.asarray(v) for k, v in run.saved.items()}
+        state, result = run.state, run.result
+    else:
+        state, chunks, result = case.state, [], jaxmps.Result.successful
+        while float(state.time) < t_end - 1e-9 and result == jaxmps.Result.successful:
+            run = jaxmps.simulate(
+                case.scene, case.params, state, 100, 1, observe, throw=False
+            )
+            chunks.append({k: np.asarray(v) for k, v in run.saved.items()})
+            state, result = run.state, run.result
+        saved = {k: np.concatenate([c[k] for c in chunks]) for k in chunks[0]}
+    wall = time.perf_counter() - start
+    # A run that stops early (throw=False) repeats its last state in the saves
+    # after it: keep only the saves it reached (and, saving every step, those
+    # up to t_end).
+    t = saved["time"]
+    keep = (t <= float(state.time) + 1e-6) & (t <= t_end + 1e-6)
+    keep &= np.concatenate([[True], np.diff(t) > 0])
+    saved = {k: v[keep] for k, v in saved.items()}
+    steps = len(saved["time"]) if every_step else int(state.step)
+    ended = min(float(state.time), float(saved["time"][-1]))
+    return saved, ended, steps, result, wall
+
+
 def measure(
-    label: str, overrides: dict, spacing: float, t_end: float, save: float = 0.1
+    label: str,
+    overrides: dict,
+    spacing: float,
+    t_end: float,
+    save: float = 0.1,
+    every_step: bool = False,
 ) -> dict:
     """Run one case; its maximum drift velocity, where and when, and the
     building's force peak and impulse."""
     settings = dict(spacing=spacing, t_end=t_end, quay_length=150.0)
     case = jaxmps.scenes.tsunami_quay(**{**settings, **overrides})
     observe = jaxmps.scenes.observe_probes(case.probes)
-    times = np.arange(1, round(t_end / save) + 1) * save
-    start = time.perf_counter()
-    run = jaxmps.simulate(
-        case.scene, case.params, case.state, times=times, observe=observe, throw=False
+    saved, ended, steps, result, wall = run_saving(
+        case, observe, t_end, save, every_step
     )
-    wall = time.perf_counter() - start
-    saved = {k: np.asarray(v) for k, v in run.saved.items()}
-    ended = float(run.state.time)
-    # A run that stops early (throw=False) repeats its last state in the saves
-    # after it: keep only the save times it reached.
-    keep = times <= ended + 1e-6
-    saved = {k: v[keep] for k, v in saved.items()}
     t = saved["time"]
     u = saved.get("ship_u", np.zeros_like(t))
     peak = int(np.argmax(u))
@@ -126,9 +178,10 @@ def measure(
         spacing=spacing,
         t_end=t_end,
         save=save,
-        result=result_name(run.result),
+        every_step=every_step,
+        result=result_name(result),
         ended_s=ended,
-        steps=int(run.state.step),
+        steps=steps,
         wall_s=round(wall, 1),
         # rows merge across runs of this script: each keeps the code it ran
         commit=machine_info()["git_commit"],
@@ -152,10 +205,13 @@ def measure(
         if passed.size:
             row["u_at_quay"] = float(u[passed[0]])
             row["t_at_quay"] = float(t[passed[0]])
+        # The stored series at the save interval (saved every step, sampled).
+        grid = np.arange(1, int(t[-1] / save + 1e-6) + 1) * save
+        grid = t if not every_step else grid[grid >= t[0]]
         row["series"] = {
-            "time": t.tolist(),
-            "ship_x": saved["ship_x"].tolist(),
-            "ship_u": u.tolist(),
+            "time": grid.tolist(),
+            "ship_x": np.interp(grid, t, saved["ship_x"]).tolist(),
+            "ship_u": np.interp(grid, t, u).tolist(),
         }
     if "building_force" in saved:
         force = saved["building_force"]
@@ -169,8 +225,8 @@ def table(rows: list[dict]) -> str:
         "| case | l0 [m] | max drift velocity [m/s] (seed) | at t [s] |"
         " displacement at max [m] | u 40 m onto the quay [m/s] (at t [s]) |"
         " building peak [kN/m; 3-D kN] | impulse [kN s/m; 3-D kN s] |"
-        " run to [s] | steps | wall [s] | commit |",
-        "|---|---|---|---|---|---|---|---|---|---|---|---|",
+        " saved | run to [s] | steps | wall [s] | commit |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for r in rows:
         eta = r["overrides"].get("tsunami_height")
@@ -183,11 +239,13 @@ def table(rows: list[dict]) -> str:
         peak = r.get("building_peak_force")
         impulse = r.get("building_impulse")
         ended = "" if r["result"] == "successful" else f" ({r['result']})"
+        saves = "every step" if r.get("every_step") else f"{r['save']} s"
         lines.append(
             f"| {r['label']} | {r['spacing']} | {shown} | {r['time_of_max']:.1f} | "
             f"{r['displacement_at_max']:.1f} | {at} | "
             f"{'' if peak is None else f'{peak / 1e3:.0f}'} | "
             f"{'' if impulse is None else f'{impulse / 1e3:.0f}'} | "
+            f"{saves} | "
             f"{r['ended_s']:.1f}{ended} | {r['steps']} | {r['wall_s']:.0f} | "
             f"{r.get('commit', '')} |"
         )
@@ -208,6 +266,11 @@ def main():
     parser.add_argument("--save", type=float, default=0.1, help="probe interval [s]")
     parser.add_argument("--fresh", action="store_true")
     parser.add_argument(
+        "--every-step",
+        action="store_true",
+        help="observe after every step (an impact's force peak and impulse)",
+    )
+    parser.add_argument(
         "--labels", nargs="+", default=None, help="only these runs of the groups"
     )
     parser.add_argument("--out", default="tsunami_quay_cpu", help="results name")
@@ -224,6 +287,7 @@ def main():
         for r in old
         if r["spacing"] == args.spacing
         and r.get("t_end") == args.t_end
+        and r.get("every_step", False) == args.every_step
         and not args.fresh
     }
     for group in args.groups:
@@ -234,7 +298,12 @@ def main():
             key = json.dumps(overrides, sort_keys=True)
             if key not in measured:
                 measured[key] = measure(
-                    label, overrides, args.spacing, args.t_end, args.save
+                    label,
+                    overrides,
+                    args.spacing,
+                    args.t_end,
+                    args.save,
+                    args.every_step,
                 )
             row = {**measured[key], "group": group, "label": label}
             print(json.dumps(row), flush=True)
