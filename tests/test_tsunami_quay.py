@@ -79,6 +79,11 @@ def test_column_depth_reads_the_water_in_the_column_not_the_spray(dim, l0):
     assert float(high(case.scene, state)) == pytest.approx(1.0 + 0.5 * l0)
     dry = jaxmps.scenes.ColumnDepth("dry", tuple(x), 0.3, l0)
     assert float(dry(case.scene, case.state)) == 0.0
+    # Between lattice columns (a quarter and a half spacing off along each
+    # axis) the gauge still reads the still water's depth.
+    for shift in (0.25, 0.5):
+        off = jaxmps.scenes.ColumnDepth("off", tuple(x + shift * l0), 0.0, l0)
+        assert float(off(case.scene, case.state)) == pytest.approx(0.2, abs=1e-9)
 
 
 @pytest.mark.parametrize(

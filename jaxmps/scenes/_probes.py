@@ -85,11 +85,13 @@ class WaterLevel(AbstractProbe):
 
 
 class ColumnDepth(AbstractProbe):
-    """Depth [m] of the water in the column l0 wide (l0 x l0 in 3-D) over `point`
-    (its first coordinates: x, or x and y), counted by volume above `floor`: the
-    number of fluid particles in it times l0, each holding l0^d. Spray over the
-    column adds l0 per particle where `WaterLevel`'s highest particle would read
-    its height; a floating body in the column does not count."""
+    """Depth [m] of the water over `point` (its first coordinates: x, or x and y)
+    above `floor`, counted by volume: each fluid particle holds l0^d, weighted by
+    a tent 2 l0 wide about the point along each of those axes (1 over it, 0 one
+    spacing off), so a lattice column reads its depth wherever the point falls
+    between columns, and a moving particle enters and leaves smoothly. Spray
+    over the column adds at most l0 per particle where `WaterLevel`'s highest
+    particle would read its height; a floating body does not count."""
 
     name: str
     point: tuple[float, ...]
@@ -99,11 +101,13 @@ class ColumnDepth(AbstractProbe):
     def __call__(self, scene: Scene, state: State):
         del scene
         fluid = jnp.logical_and(state.active, state.kind == int(Kind.FLUID))
-        inside = fluid & (state.position[:, -1] > self.floor)
+        weight = (fluid & (state.position[:, -1] > self.floor)).astype(
+            state.position.dtype
+        )
         for axis, at in enumerate(self.point):
-            near = jnp.abs(state.position[:, axis] - at) < 0.5 * self.spacing
-            inside = inside & near
-        return jnp.sum(inside).astype(state.position.dtype) * self.spacing
+            off = jnp.abs(state.position[:, axis] - at) / self.spacing
+            weight = weight * jnp.maximum(1.0 - off, 0.0)
+        return jnp.sum(weight) * self.spacing
 
 
 class FlowVelocity(AbstractProbe):
