@@ -193,6 +193,8 @@ def _boundaries(
             scene.grid,
             params.dt,
             state,
+            # an absorbing inflow reads the depth in front against gravity
+            jnp.linalg.norm(params.gravity) if scene.inflow.absorbing else None,
         )
     return state, pool_short
 

@@ -169,23 +169,29 @@ def test_prescribed_series_inflow_volume_matches_discharge(dim, axis, direction)
     assert np.asarray(state.position)[fluid, dim - 1].max() < depth.max()
 
 
-def _tank_with_inflow(l0, depth, length, velocity, wall=0.16, series=None):
+def _tank_with_inflow(
+    l0, depth, length, velocity, wall=0.16, series=None, absorbing=False, pool=100
+):
     """A 2-D tank `length` long filled to `depth` whose left wall is an inflow
-    boundary `wall` high: scene, params, state, the fluid and the Inflow."""
+    boundary `wall` high (`absorbing` or not): scene, params, state, the fluid
+    and the Inflow."""
     fluid = jaxmps.geometry.block([0.0, 0.0], [length, depth], l0)
     walls, wall_kind = jaxmps.geometry.tank([0.0, 0.0], [length, wall], l0)
     keep = ~((walls[:, 0] < 0) & (walls[:, 1] > 0))
     walls, wall_kind = walls[keep], wall_kind[keep]
     first = len(fluid) + len(walls)
     boundary, boundary_kind, inflow = jaxmps.fluid.inflow_boundary(
-        0.0, [0.0, 0.0], [0.0, wall], l0, first=first
+        0.0, [0.0, 0.0], [0.0, wall], l0, first=first, absorbing=absorbing
     )
     position = np.concatenate([fluid, walls, boundary])
     kind = np.concatenate(
         [np.full(len(fluid), int(jaxmps.Kind.FLUID)), wall_kind, boundary_kind]
     )
     scene = jaxmps.make_scene(
-        position, l0, ([-0.1, -0.1], [length + 0.1, 0.3]), capacity=len(position) + 100
+        position,
+        l0,
+        ([-0.1, -0.1], [length + 0.1, 0.3]),
+        capacity=len(position) + pool,
     )
     scene = eqx.tree_at(lambda s: s.inflow, scene, inflow, is_leaf=lambda x: x is None)
     params = eqx.tree_at(
@@ -227,6 +233,55 @@ def test_negative_inflow_velocity_withdraws_water_at_the_prescribed_rate():
     wet = np.asarray(run.state.active & (run.state.kind == int(jaxmps.Kind.FLUID)))
     face = x[list(inflow.pressure_layer), 0].max()
     assert x[wet, 0].min() > face + 0.4 * l0
+
+
+@pytest.mark.parametrize("absorbing", [False, True])
+def test_a_wave_reflected_back_to_an_absorbing_inflow_leaves_the_tank(absorbing):
+    """A long wave 2 cm high on 10 cm of water (the simple wave's depth and
+    velocity, for 0.4 s) runs 1 m to the tank's far wall and back. A piston
+    boundary (not absorbing) stops and reflects it again: the wave's water
+    stays in the tank. An absorbing boundary lets the reflection out
+    (withdrawing water as it arrives): after it has passed, the tank holds its
+    still water again, within a quarter of the wave's volume."""
+    l0, depth, length, eta, g = 0.01, 0.1, 1.0, 0.02, 9.81
+    u = 2 * (np.sqrt(g * (depth + eta)) - np.sqrt(g * depth))
+    series = dict(
+        times=np.array([0.0, 0.1, 0.4, 0.5]),
+        depth=np.array([depth, depth + eta, depth + eta, depth]),
+    )
+    scene, params, state, fluid, _ = _tank_with_inflow(
+        l0,
+        depth,
+        length,
+        np.array([0.0, u, u, 0.0]),
+        wall=0.2,
+        series=series,
+        absorbing=absorbing,
+        pool=300,
+    )
+    # The reflection is back at the boundary at about 2 s, out by 2.6 s.
+    times = np.array([0.5, 1.0, 3.0])
+    count = jaxmps.scenes.FluidCount("fluid")
+    run = jaxmps.simulate(
+        scene,
+        params,
+        state,
+        times=times,
+        observe=jaxmps.scenes.observe_probes((count,)),
+    )
+    n = np.asarray(run.saved["fluid"])
+    wave = n[1] - len(fluid)  # what the wave brought in
+    t = np.linspace(0.0, 0.5, 5001)
+    brought = np.trapezoid(
+        np.interp(t, series["times"], [0.0, u, u, 0.0])
+        * np.interp(t, series["times"], series["depth"]),
+        t,
+    )
+    assert wave * l0**2 == pytest.approx(brought, rel=0.15)
+    if absorbing:
+        assert abs(n[-1] - len(fluid)) < 0.25 * wave
+    else:
+        assert n[-1] - len(fluid) > 0.9 * wave
 
 
 def test_inflow_params_refuse_bad_series():

@@ -3,6 +3,7 @@ seed 002 §2.8) and outflow. Particles are activated and deactivated, never
 allocated: the State's shapes never change."""
 
 import equinox as eqx
+import jax
 import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Bool, Float
@@ -30,6 +31,14 @@ class Inflow(eqx.Module):
     within one spacing in front of it is returned to the pool and the boundary
     steps forward by l0 (Aida's outflow rule).
 
+    An `absorbing` boundary lets a wave reflected back to it leave the domain
+    (the sea beyond it is open) instead of reflecting again as a piston would:
+    it imposes the incoming shallow-water characteristic u + 2 sqrt(g d) of the
+    prescribed series (u_I, d_I) and reads the depth d in front of it, moving at
+    u = u_I + 2 (sqrt(g d_I) - sqrt(g d)): the prescribed speed while the water
+    in front is as deep as prescribed, slower (or backwards, withdrawing water)
+    where a reflection has raised it. Needs a prescribed depth.
+
     Attributes:
         pressure_layer: indices of the pressure-layer boundary particles.
         boundary: indices of all boundary particles (pressure + dummy layers).
@@ -37,6 +46,9 @@ class Inflow(eqx.Module):
         axis: the axis the boundary moves along (0 = x).
         direction: +1 when the fluid lies on the boundary's +axis side, -1 when it
             lies on the -axis side (an inflow at the high end).
+        absorbing: the boundary absorbs waves reflected back to it (above).
+        across: the pressure layer's lattice columns across the flow (1 in 2-D):
+            the depth in front is the fluid's volume there over their area.
     """
 
     pressure_layer: tuple[int, ...]
@@ -44,6 +56,8 @@ class Inflow(eqx.Module):
     origin: float
     axis: int = 0
     direction: int = 1
+    absorbing: bool = False
+    across: int = 1
 
     def __check_init__(self):
         if self.direction not in (1, -1):
@@ -78,12 +92,14 @@ def inflow_boundary(
     direction: int = 1,
     layers: int = 3,
     first: int = 0,
+    absorbing: bool = False,
 ) -> tuple[np.ndarray, np.ndarray, Inflow]:
     """The particles of an inflow boundary whose fluid starts at `face` along
     `axis` and lies on its `direction` side, across the box [`lower`, `upper`] of
     the other axes (the entries at `axis` are ignored): a pressure layer l0/2
     behind the face and `layers` - 1 dummy layers behind it, on the lattice of
-    spacing l0. `first` is the index the first of them will have in the state.
+    spacing l0. `first` is the index the first of them will have in the state;
+    `absorbing` makes it let reflected waves out (`Inflow`).
 
     Returns:
         positions (m, d), kinds (m,) (`Kind.WALL`, then `Kind.DUMMY`) and the
@@ -103,12 +119,16 @@ def inflow_boundary(
         [sheet + (face + o) * np.eye(len(lower))[axis] for o in offsets]
     )
     kinds = np.where(np.arange(len(points)) < len(sheet), Kind.WALL, Kind.DUMMY)
+    lateral = [k for k in range(len(lower)) if k not in (axis, len(lower) - 1)]
+    columns = np.unique(np.round(sheet[:, lateral] / spacing), axis=0)
     inflow = Inflow(
         pressure_layer=tuple(range(first, first + len(sheet))),
         boundary=tuple(range(first, first + len(points))),
         origin=float(face + offsets[0]),
         axis=axis,
         direction=direction,
+        absorbing=absorbing,
+        across=len(columns) if lateral else 1,
     )
     return points, kinds.astype(np.int32), inflow
 
@@ -120,9 +140,11 @@ def apply_inflow(
     grid: Grid,
     dt: Float[Array, ""],
     state: State,
+    gravity: Float[Array, ""] | None = None,
 ) -> tuple[State, Bool[Array, ""]]:
     """Move the inflow boundary over [t, t + dt] and spawn a fluid column when it
-    has advanced l0 (or withdraw one when it has retreated l0).
+    has advanced l0 (or withdraw one when it has retreated l0). `gravity` [m/s^2]
+    is needed by an absorbing boundary.
 
     Returns the new state and whether the pool was too small for a spawn (the spawn
     is then partial; `Result.pool_exhausted` is set by the step).
@@ -137,6 +159,15 @@ def apply_inflow(
     # The trapezoid of the velocity over the step: a tabulated series is followed
     # exactly (piecewise linear), the boundary carries the step's mean velocity.
     shift = 0.5 * (u_start + u_end) * dt
+    if inflow.absorbing:
+        if depth is None or gravity is None:
+            raise ValueError(
+                "An absorbing inflow needs a prescribed depth "
+                "(InflowParams.depth) and gravity."
+            )
+        absorb = _absorption(inflow, depth, l0, gravity, state)
+        shift = shift + absorb * dt
+        u_end = u_end + absorb
     e = jnp.zeros(disc.dim, state.position.dtype).at[axis].set(sign)
     position = state.position.at[boundary, axis].add(sign * shift)
     velocity = state.velocity.at[boundary].set((shift / dt) * e)
@@ -145,6 +176,33 @@ def apply_inflow(
     state, short = _spawn(inflow, depth, l0, u_end * e, travel >= l0, state)
     state = _withdraw(inflow, grid, l0, travel <= -l0, state)
     return state, short
+
+
+def _absorption(inflow: Inflow, depth, l0: float, gravity, state: State):
+    """The absorbing boundary's correction to the prescribed speed [m/s],
+    2 (sqrt(g d_I) - sqrt(g d)): d_I the depth the boundary spawns (whole
+    particles under the prescribed depth, as `_spawn` counts them) and d the
+    fluid's volume within three spacings in front of the pressure layer over
+    that strip's area, so that still water as deep as prescribed reads no
+    correction. A count: it carries no gradient."""
+    axis, sign = inflow.axis, inflow.direction
+    layer = jnp.asarray(inflow.pressure_layer)
+    at_layer = state.position[layer]
+    up = at_layer.shape[1] - 1
+    bottom = jnp.min(at_layer[:, up]) - 0.5 * l0
+    fed = jnp.sum(at_layer[:, up] - bottom < depth) * l0 / inflow.across
+    ahead = sign * (state.position[:, axis] - at_layer[0, axis])
+    inside = state.active & (state.kind == int(Kind.FLUID))
+    inside &= (ahead > 0.5 * l0) & (ahead <= 3.5 * l0)
+    for k in range(at_layer.shape[1]):
+        if k in (axis, up):
+            continue
+        low = jnp.min(at_layer[:, k]) - 0.5 * l0
+        high = jnp.max(at_layer[:, k]) + 0.5 * l0
+        inside &= (state.position[:, k] >= low) & (state.position[:, k] < high)
+    front = jnp.sum(inside) * l0 / (3 * inflow.across)
+    g = jax.lax.stop_gradient(jnp.asarray(gravity, state.position.dtype))
+    return 2.0 * (jnp.sqrt(g * fed) - jnp.sqrt(g * front))
 
 
 def _spawn(inflow: Inflow, depth, l0: float, velocity, spawn, state: State):

@@ -40,6 +40,10 @@ TSUNAMI_QUAY = {
     "rise_time": 10.0,
     "hold_time": 20.0,
     "fall_time": 10.0,
+    # The open sea beyond the inflow boundary: a wave reflected by the quay (or a
+    # building) back to it leaves the domain instead of reflecting again off a
+    # piston (`Inflow.absorbing`); False: a piston wave-maker, as seed 000's.
+    "inflow_absorbing": True,
     # Or a dam break (seed 000 §3.1's flume): a reservoir `reservoir_length` long
     # behind a gate at the sea's seaward end, filled to `reservoir_depth` and
     # released at t = 0 (no inflow then).
@@ -125,7 +129,10 @@ def tsunami_quay(**overrides) -> Case:
 
     The wave at the boundary: depth h + eta(t) and velocity
     u = 2 (sqrt(g (h + eta)) - sqrt(g h)), the simple (Riemann) wave running
-    onto still water of depth h.
+    onto still water of depth h. The boundary absorbs what the quay reflects
+    back to it (`inflow_absorbing`, default: the sea beyond it is open), where a
+    piston would pump the wave's discharge in against the reflection and raise
+    the whole sea.
 
     Probes: `ship_x`, `ship_z` (centre), `ship_u`, `ship_w` (velocity),
     `ship_angle` (rigid only) with a ship, `fluid_count`, `sea_level` and `sea_u` at
@@ -385,7 +392,13 @@ def _inflow(c: dict, g: dict, first: int):
     top_in = _inflow_top(g, l0)
     upper = [0.0] + ([g["width"]] if dim == 3 else []) + [top_in]
     return inflow_boundary(
-        0.0, [0.0] * dim, upper, l0, layers=boundary_layers(c), first=first
+        0.0,
+        [0.0] * dim,
+        upper,
+        l0,
+        layers=boundary_layers(c),
+        first=first,
+        absorbing=bool(c["inflow_absorbing"]),
     )
 
 
