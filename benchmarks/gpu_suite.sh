@@ -10,7 +10,8 @@
 #   BUDGET_S=500 RESULTS=/tmp/r bash benchmarks/gpu_suite.sh
 #
 # Stages: a smoke run; 2-D and 3-D explicit scaling 1e4-1e6 particles; 2-D
-# semi-implicit scaling; the tsunami scene's 3-D step cost; 2-D explicit at 4e6;
+# semi-implicit scaling; the tsunami scene's 3-D step cost (reduced, then at
+# the seed's l0 = 1 m); 2-D explicit at 4e6;
 # float64 explicit (jaxmps' side of side_by_side); the sweep; several-GPU runs
 # where there are several. JAX-SPH and PySPH are left out (their venvs need
 # package downloads and PySPH is CPU-only); compare with them on the CPU files.
@@ -64,6 +65,8 @@ stage scaling_2d_semi 120 python benchmarks/scaling.py --solvers semi_implicit \
 stage tsunami_3d 100 python benchmarks/tsunami_cost.py --steps 100 \
   --configs "3-D reduced, l0 = 2 m" "3-D reduced, l0 = 1.5 m" \
   --out "$R/tsunami_cost_$TAG"
+stage tsunami_3d_seed 300 python benchmarks/tsunami_cost.py --steps 100 \
+  --configs "3-D, l0 = 1 m (seed's resolution)" --out "$R/tsunami_cost_seed_$TAG"
 stage scaling_2d_4m 80 python benchmarks/scaling.py --solvers explicit \
   --sizes 4000000 --out "$R/scaling_explicit_4m_$TAG"
 stage side_by_side_x64 150 python benchmarks/side_by_side.py --no-peer --no-pysph \
