@@ -37,7 +37,10 @@ class Inflow(eqx.Module):
     prescribed series (u_I, d_I) and reads the depth d in front of it, moving at
     u = u_I + 2 (sqrt(g d_I) - sqrt(g d)): the prescribed speed while the water
     in front is as deep as prescribed, slower (or backwards, withdrawing water)
-    where a reflection has raised it. Needs a prescribed depth.
+    where a reflection has raised it. Needs a prescribed depth. It reads the
+    depth over the three columns in front, spawned over the last few steps: while
+    the prescribed depth rises fast it reads a little low and feeds more than
+    the series' discharge (+2.8 % of a tsunami's first 13 s at l0 = 1 m).
 
     Attributes:
         pressure_layer: indices of the pressure-layer boundary particles.
