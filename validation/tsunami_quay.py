@@ -268,7 +268,7 @@ def table(rows: list[dict]) -> str:
         peak = r.get("building_peak_force")
         impulse = r.get("building_impulse")
         ended = "" if r["result"] == "successful" else f" ({r['result']})"
-        saves = "every step" if r.get("every_step") else f"{r['save']} s"
+        saves = "every step" if r.get("every_step") else f"{r.get('save', 0.1)} s"
         windows = r.get("building_window_peaks")
         windows = (
             ""
