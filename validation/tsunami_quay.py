@@ -8,9 +8,12 @@ Groups (each a set of runs of the scene with its defaults except as listed):
   draft     drafts 4 and 7 m at eta = 13.5 m (seed Tables 4.2-3..5: heavier ships
             reach their maximum velocity closer to the sea, i.e. after a shorter
             displacement);
+  draft_long  drafts 4, 5.5 and 7 m on a quay 300 m long (--t-end 40), where
+            the ships' velocity can peak before the quay ends;
   gap       ship-quay distance 2 m, 1.5 B and 2.5 B at eta = 13.5 m, on a sea 90 m
             long (seed §4.3: the ship on the run-up front, at 2 m, drifts
             fastest);
+  gap_long  the same on a quay 300 m long (--t-end 40);
   building  a building 9 m deep, 38 m high, 40 m from the quay edge, hit by the
             tsunami alone and with the ship (seed §5: the impulse with the ship
             exceeds the tsunami-only impulse).
@@ -86,11 +89,29 @@ def runs(group: str) -> list[tuple[str, dict]]:
         return [
             (f"draft {d}", dict(tsunami_height=13.5, ship_draft=d)) for d in (4.0, 7.0)
         ]
+    if group == "draft_long":
+        # The draft group on a quay 300 m long: at 100 m the deeper ship is still
+        # speeding up where the quay ends, so where its velocity peaks is not
+        # seen (run it with --t-end 40: the wave holds for 20 s).
+        return [
+            (
+                f"draft {d}, quay 300 m",
+                dict(tsunami_height=13.5, ship_draft=d, quay_length=300.0),
+            )
+            for d in (4.0, 5.5, 7.0)
+        ]
     if group == "gap":
         # A sea 90 m long, so that the ship fits at 2.5 B off the quay.
         return [
             (f"gap {name}", dict(tsunami_height=13.5, ship_gap=gap, sea_length=90.0))
             for name, gap in (("2 m", 2.0), ("1.5 B", 25.5), ("2.5 B", 42.5))
+        ]
+    if group == "gap_long":
+        # The gap group on a quay 300 m long (--t-end 40): the farther ships
+        # were still speeding up where the 100 m quay ends.
+        return [
+            (f"{label}, quay 300 m", {**overrides, "quay_length": 300.0})
+            for label, overrides in runs("gap")
         ]
     if group == "building":
         building = dict(tsunami_height=13.5, building_depth=9.0, quay_length=100.0)
@@ -262,7 +283,11 @@ def table(rows: list[dict]) -> str:
         seed = SEED_MAX_VELOCITY.get(eta) if r["label"].startswith("eta") else None
         shown = f"{r['max_drift_velocity']:.2f}" + (f" ({seed})" if seed else "")
         if r.get("max_at_end") or r["time_of_max"] >= r["ended_s"] - 0.1:
-            shown += ", still rising at the quay's end"
+            shown += (
+                ", still rising at the quay's end"
+                if r["result"] == "left_domain"
+                else ", still rising when the run stopped"
+            )
         at = r.get("u_at_quay")
         at = "" if at is None else f"{at:.2f} ({r['t_at_quay']:.1f})"
         peak = r.get("building_peak_force")
