@@ -14,6 +14,7 @@ Groups (each a set of runs of the scene with its defaults except as listed):
             long (seed §4.3: the ship on the run-up front, at 2 m, drifts
             fastest);
   gap_long  the same on a quay 300 m long (--t-end 40);
+  height_ds  the heights with dynamic stabilisation (`scheme="standard_ds"`);
   building  a building 9 m deep, 38 m high, 40 m from the quay edge, hit by the
             tsunami alone and with the ship (seed §5: the impulse with the ship
             exceeds the tsunami-only impulse).
@@ -105,6 +106,17 @@ def runs(group: str) -> list[tuple[str, dict]]:
         return [
             (f"gap {name}", dict(tsunami_height=13.5, ship_gap=gap, sea_length=90.0))
             for name, gap in (("2 m", 2.0), ("1.5 B", 25.5), ("2.5 B", 42.5))
+        ]
+    if group == "height_ds":
+        # The height group with dynamic stabilisation: at l0 = 0.5 m the default
+        # scheme's eta = 18 m run stopped at 11.8 s (the breaking bore over the
+        # quay threw particles at hundreds of m/s, pressures to 1e8-1e9 Pa).
+        return [
+            (
+                f"eta {eta}, standard_ds",
+                dict(tsunami_height=eta, scheme="standard_ds"),
+            )
+            for eta in (18.0, 8.5, 13.5)
         ]
     if group == "gap_long":
         # The gap group on a quay 300 m long (--t-end 40): the farther ships
