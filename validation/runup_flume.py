@@ -137,11 +137,21 @@ def reanalyse(path, save: float, width: float) -> None:
         row.update(analyse(t, {k: series[k] for k in ("H1", "H2", "H3")}, save, width))
         row["smooth_s"] = width
     path.write_text(json.dumps(data))
-    note = data.get("note", "")
-    path.with_suffix(".md").write_text(
+    path.with_suffix(".md").write_text(document(data["rows"], data.get("note", "")))
+
+
+def key(row: dict) -> tuple:
+    return (row["position"], row["spacing"], row["scheme"])
+
+
+def document(rows: list[dict], note: str) -> str:
+    machines = "\n".join(
+        f"- P = {r['position']} m, l0 = {r['spacing']} m, {r['scheme']}: {r['machine']}"
+        for r in rows
+    )
+    return (
         "# Dam-break bore on a building on a quay (seed 000 §3.1): pressure "
-        "features\n\n"
-        f"Machine: {data['machine']}\n\n{note}\n\n" + table(data["rows"]) + "\n"
+        f"features\n\n{note}\n\n" + table(rows) + f"\n\nMachines:\n\n{machines}\n"
     )
 
 
@@ -187,25 +197,31 @@ def main():
     if args.reanalyse:
         reanalyse(path.with_suffix(".json"), args.save, args.smooth)
         return
-    rows, histories = [], []
+    # Rows of other positions, spacings or schemes already in the file are kept
+    # (each with the machine it ran on); a row measured again is replaced.
+    previous = (
+        json.loads(path.with_suffix(".json").read_text())
+        if path.with_suffix(".json").exists()
+        else {"rows": [], "series": []}
+    )
+    info = machine_info()
+    note = previous.get("note", "")
+    kept = {
+        key(r): (r | {"machine": r.get("machine", previous.get("machine"))}, s)
+        for r, s in zip(previous["rows"], previous["series"])
+    }
     for position in args.positions:
         row, series = measure(
             position, args.spacing, args.t_end, args.save, args.smooth, args.scheme
         )
+        row["machine"] = info
         print(json.dumps(row), flush=True)
-        rows.append(row)
-        histories.append(series)
-    info = machine_info()
-    path.with_suffix(".json").write_text(
-        json.dumps(
-            {"machine": info, "args": vars(args), "rows": rows, "series": histories}
-        )
-    )
-    path.with_suffix(".md").write_text(
-        "# Dam-break bore on a building on a quay (seed 000 §3.1): pressure "
-        "features\n\n"
-        f"Machine: {info}\n\n" + table(rows) + "\n"
-    )
+        kept[key(row)] = (row, series)
+        rows = [r for r, _ in kept.values()]
+        histories = [s for _, s in kept.values()]
+        data = {"note": note, "rows": rows, "series": histories}
+        path.with_suffix(".json").write_text(json.dumps(data))
+        path.with_suffix(".md").write_text(document(rows, note))
 
 
 if __name__ == "__main__":
