@@ -52,7 +52,10 @@ def case_rows(quick: bool):
                 (f"depth {depth}", dict(density_ratio=0.6, depth=depth, spacing=l0))
             )
     if not quick:
-        rows.append(("3-D ratio 0.6", dict(density_ratio=0.6, spacing=0.02, dim=3)))
+        for ratio in (0.3, 0.5, 0.6, 0.8):
+            rows.append(
+                (f"3-D ratio {ratio}", dict(density_ratio=ratio, spacing=0.02, dim=3))
+            )
     return rows
 
 

@@ -71,12 +71,19 @@ def surface_angle(x: np.ndarray, top: np.ndarray, d: float) -> float:
 
 
 def run(
-    aspect: float, friction: float, t_end: float, seed: int, rolling: float = 0.0
+    aspect: float,
+    friction: float,
+    t_end: float,
+    seed: int,
+    rolling: float = 0.0,
+    spacing: float = SPACING,
 ) -> dict:
+    """One collapse of grains `spacing` across (the largest; the sizes spread
+    20 % below it)."""
     case = jaxmps.scenes.granular_collapse(
         column_width=WIDTH,
         column_height=aspect * WIDTH,
-        spacing=SPACING,
+        spacing=spacing,
         friction=friction,
         rolling=rolling,
         floor_length=max(0.3, WIDTH * (2.5 + 3 * aspect)),
@@ -99,7 +106,7 @@ def run(
     d = np.asarray(gs.diameter)
     speed = float(np.linalg.norm(np.asarray(out.state.velocity)[index], axis=1).max())
     # at rest: the runout unchanged over the last 0.1 s
-    settled = bool(abs(runout[-1] - runout[-3]) < 0.5 * SPACING)
+    settled = bool(abs(runout[-1] - runout[-3]) < 0.5 * spacing)
     normalised = (runout[-1] - WIDTH) / WIDTH
     law = lube(aspect)
     return dict(
@@ -107,6 +114,7 @@ def run(
         friction=friction,
         rolling=rolling,
         seed=seed,
+        spacing=spacing,
         grains=int(case.scene.grains.count),
         substeps=int(case.scene.grains.substeps),
         result=jaxmps._result.result_name(out.result),
@@ -118,7 +126,7 @@ def run(
         lube=law,
         ratio_to_lube=None if law is None else float(normalised / law),
         final_height_over_l0=float(height[-1] / WIDTH),
-        angle_deg=surface_angle(x[:, 0], x[:, 1] + 0.5 * d, SPACING),
+        angle_deg=surface_angle(x[:, 0], x[:, 1] + 0.5 * d, spacing),
         largest_speed=speed,
         settled=settled,
         runout_history=runout.tolist(),
