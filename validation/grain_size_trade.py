@@ -10,7 +10,7 @@ steps, wall time per run and per grain-step, the normalised runout against the
 law (mean and spread over packings) and the deposit's angle.
 
 Run: python validation/grain_size_trade.py [--sizes 0.01,0.005,0.0025]
-[--seeds 0,1] [--aspect 3] (writes results/grain_size_trade_cpu.{md,json})
+[--seeds 0,1] [--aspect 3] [--rolling 0] (writes results/grain_size_trade_cpu.{md,json})
 """
 
 import argparse
@@ -32,13 +32,14 @@ def table(runs: list[dict], info: dict) -> str:
         "(2011), 1.9 a^(2/3) for a > 2.8. Grain-steps: grains x steps (the DEM's "
         "sub-steps not counted).",
         "",
-        "| grain [mm] | across L0 | a | mu | grains | DEM sub-steps | packings | "
-        "(L-L0)/L0 | law | ratio | angle [deg] | at rest | steps | wall per run "
-        "[s] | us per grain-step |",
-        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
+        "| grain [mm] | across L0 | a | mu | mu_r | grains | DEM sub-steps | "
+        "packings | (L-L0)/L0 | law | ratio | angle [deg] | at rest | steps | "
+        "wall per run [s] | us per grain-step |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
-    for d in sorted({r["spacing"] for r in runs}, reverse=True):
-        sel = [r for r in runs if r["spacing"] == d]
+    groups = sorted({(r["rolling"], -r["spacing"]) for r in runs})
+    for roll, d in ((roll, -neg) for roll, neg in groups):
+        sel = [r for r in runs if (r["rolling"], r["spacing"]) == (roll, d)]
         first = sel[0]
         runout = np.array([r["normalised_runout"] for r in sel])
         angle = np.array([r["angle_deg"] for r in sel])
@@ -48,7 +49,8 @@ def table(runs: list[dict], info: dict) -> str:
         per = 1e6 * wall / (steps * first["grains"])
         lines.append(
             f"| {d * 1e3:g} | {WIDTH / d:.0f} | {first['aspect']:g} | "
-            f"{first['friction']:g} | {first['grains']} | {first['substeps']} | "
+            f"{first['friction']:g} | {roll:g} | {first['grains']} | "
+            f"{first['substeps']} | "
             f"{len(sel)} | {runout.mean():.2f} +- {runout.std():.2f} | "
             f"{'-' if law is None else f'{law:.2f}'} | "
             f"{'-' if law is None else f'{runout.mean() / law:.2f}'} | "
@@ -59,20 +61,31 @@ def table(runs: list[dict], info: dict) -> str:
     return "\n".join(lines) + "\n"
 
 
+def key(row: dict) -> tuple:
+    return tuple(row[k] for k in ("aspect", "friction", "rolling", "spacing", "seed"))
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--sizes", default="0.01,0.005,0.0025")
     parser.add_argument("--seeds", default="0,1")
     parser.add_argument("--aspect", type=float, default=3.0)
     parser.add_argument("--friction", type=float, default=0.5)
+    parser.add_argument("--rolling", type=float, default=0.0)
     parser.add_argument("--t-end", type=float, default=1.5)
     args = parser.parse_args()
-    runs = []
     path = HERE / "results" / "grain_size_trade_cpu"
+    # Runs already in the file are kept; one measured again is replaced.
+    runs = []
+    if path.with_suffix(".json").exists():
+        runs = json.loads(path.with_suffix(".json").read_text())["runs"]
     for d in [float(v) for v in args.sizes.split(",")]:
         for seed in [int(v) for v in args.seeds.split(",")]:
-            row = run(args.aspect, args.friction, args.t_end, seed, spacing=d)
-            runs.append(row)
+            row = run(
+                args.aspect, args.friction, args.t_end, seed, args.rolling, spacing=d
+            )
+            row["machine"] = machine_info()
+            runs = [r for r in runs if key(r) != key(row)] + [row]
             print(json.dumps({k: v for k, v in row.items() if "history" not in k}))
             info = machine_info()
             path.with_suffix(".md").write_text(table(runs, info))
