@@ -206,10 +206,7 @@ def main():
     )
     info = machine_info()
     note = previous.get("note", "")
-    kept = {
-        key(r): (r | {"machine": r.get("machine", previous.get("machine"))}, s)
-        for r, s in zip(previous["rows"], previous["series"])
-    }
+    kept = {key(r): (r, s) for r, s in zip(previous["rows"], previous["series"])}
     for position in args.positions:
         row, series = measure(
             position, args.spacing, args.t_end, args.save, args.smooth, args.scheme
