@@ -15,8 +15,10 @@ Errors are time means over the window, in units of l0 and in mm.
 
 Run: python validation/floating_draft.py [--quick] [--cases NAME ...]
 [--spacings L0 ...] [--heads H ...] [--walls hydrostatic zero-gradient] [--merge]
-(writes results/floating_draft_cpu.{json,md}; --quick runs the 2-D l0 = B/10 and
-B/20 rows only; --merge keeps the existing file's rows that were not re-measured.)
+[--hold damped undamped] (writes results/floating_draft_cpu.{json,md}; --quick
+runs the 2-D l0 = B/10 and B/20 rows only; --merge keeps the existing file's rows
+that were not re-measured; --hold: the explicit water held at rest, the scene's
+default `settle_damping`, or ringing.)
 """
 
 import argparse
@@ -74,12 +76,14 @@ def measure(
     walls=None,
     sound_speed=None,
     body_head=None,
+    damped_hold=True,
 ):
     case = jaxmps.scenes.floating_box(
         body_pressure=pressure,
         solver=solver,
         t_end=settle,
         sound_speed=sound_speed,
+        settle_damping=damped_hold,
         **overrides,
     )
     if head is not None:
@@ -129,6 +133,12 @@ def measure(
         ),
         sound_speed=float(case.params.sound_speed) if solver == "explicit" else None,
         settle_s=float(c["settle"]),
+        # the explicit hold: its water rings, or is relaxed (`settle_damping`)
+        hold=(
+            ("damped" if c["settle_damping"] else "undamped")
+            if solver == "explicit" and c["settle"] > 0
+            else None
+        ),
         dim=int(c["dim"]),
         spacing=l0,
         box_over_l0=round(c["box_width"] / l0),
@@ -172,11 +182,14 @@ def markdown(rows, info):
         "settle: seconds the water settled around the box held still before its",
         "release (the scene's `settle`; by default 20 depth / c under the explicit",
         "solver, whose water starts unpressurised; 0: released at once).",
+        "hold: how the explicit solver's water was held (undamped: ringing; damped:",
+        "its velocities zeroed 16 times per period of the water column, 4 depth / c).",
         "Target: |displaced| <= 0.3 l0, falling in mm with l0. The probe swings by",
         "+-0.4 l0 with the tank's sloshing: a 1 s window's mean can be 0.3 l0 off",
         "a 3 s window's.",
         "",
-        "| case | host | solver | head | walls | body | c [m/s] | settle [s] | dim |"
+        "| case | host | solver | head | walls | body | c [m/s] | settle [s] |"
+        " hold | dim |"
         " B/l0 |"
         " ratio |"
         " H [m] |"
@@ -184,7 +197,7 @@ def markdown(rows, info):
         " displaced [l0] | displaced [mm] | pressure [l0] | centres [l0] |"
         " std [l0] | heel [deg] | window [s] | wall [s] |",
         "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"
-        "---|---|",
+        "---|---|---|",
     ]
     for r in rows:
         head = "" if r.get("surface_head") is None else f"{r['surface_head']:g}"
@@ -193,7 +206,7 @@ def markdown(rows, info):
             f"| {r['case']} | {r.get('host', '?').split(',')[0]} | {r['solver']} |"
             f" {head} | {r.get('walls') or ''} |"
             f" {r.get('body_head') or ''} | {c} | {r.get('settle_s', 0.0):.2g} |"
-            f" {r['dim']} |"
+            f" {r.get('hold') or ''} | {r['dim']} |"
             f" {r['box_over_l0']} | {r['density_ratio']} | {r['box_height']} |"
             f" {r['depth']} | {r['displaced_l0']:+.2f} | {r['displaced_mm']:+.2f} |"
             f" {r['error_l0']:+.2f} | {r['error_centres_l0']:+.2f} |"
@@ -242,6 +255,14 @@ def main():
         default=[None],
         help="semi-implicit body_head: the box's own head or 0 (default: the solver's)",
     )
+    parser.add_argument(
+        "--hold",
+        nargs="+",
+        choices=["damped", "undamped"],
+        default=["damped"],
+        help="explicit: the held water brought to rest or left ringing "
+        "(scene `settle_damping`)",
+    )
     parser.add_argument("--cases", nargs="*", help="only these case names")
     parser.add_argument("--spacings", nargs="*", type=float, help="only these l0")
     parser.add_argument("--out", default="floating_draft_cpu")
@@ -255,6 +276,8 @@ def main():
         for r in old:  # rows from before the choice of wall condition
             r.setdefault("host", stored["machine"].get("cpu_model", "?"))
             r.setdefault("settle_s", 0.0)  # rows from before the held spin-up
+            if r["settle_s"] > 0 and r["solver"] == "explicit":
+                r.setdefault("hold", "undamped")  # rows before the damped hold
             if r["solver"] == "semi_implicit":
                 r.setdefault("walls", "zero-gradient")
                 r.setdefault("body_head", "zero")  # before the bodies' head
@@ -270,11 +293,12 @@ def main():
             semi = solver == "semi_implicit"
             heads = args.heads if semi else [None]
             speeds = [None] if semi else args.sound_speeds
-            for head, walls, body, speed in itertools.product(
+            for head, walls, body, speed, hold in itertools.product(
                 heads,
                 args.walls if semi else [None],
                 args.body_heads if semi else [None],
                 speeds,
+                ["damped"] if semi else args.hold,
             ):
                 row = measure(
                     overrides,
@@ -287,6 +311,7 @@ def main():
                     walls,
                     None if speed in (None, "auto") else float(speed),
                     body,
+                    hold == "damped",
                 )
                 row["case"] = name
                 row["host"] = machine_info().get("cpu_model", "?")
@@ -313,6 +338,7 @@ def _key(row):
             "body_head",
             "sound_speed",
             "settle_s",
+            "hold",
             "dim",
             "spacing",
         )
