@@ -95,6 +95,8 @@ def test_column_depth_reads_the_water_in_the_column_not_the_spray(dim, l0):
         ({"ship_draft": 9.0}, "ship_height"),
         ({"building_depth": 9.0, "building_distance": 95.0}, "quay's end"),
         ({"ship_body": "steel"}, "ship_body"),
+        ({"ship_gap": 0.4}, "ship_gap=0.4 m is under half the particle spacing"),
+        ({"quay_crest": 0.3}, "quay_crest"),
         ({"sea_length": 20.0}, "inflow boundary"),
         ({"offshore_gauge": 70.0}, "offshore_gauge"),
         ({"reservoir_length": 50.0}, "reservoir_depth"),

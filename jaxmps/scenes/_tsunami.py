@@ -14,7 +14,7 @@ from ..bodies import ElasticBodies, shear_speed
 from ..fluid import InflowParams, Outflow, inflow_boundary
 from ._bodies import _body_scene
 from ._case import Case
-from ._common import boundary_layers, case_params, resolve, whole
+from ._common import boundary_layers, case_params, resolve, setting_length
 from ._probes import (
     BodyValue,
     ColumnDepth,
@@ -227,7 +227,17 @@ def _geometry(c: dict) -> dict:
     l0, s = c["spacing"], c["scale"]
     g = {}
     for key in _LENGTHS:
-        g[key] = None if c[key] is None else whole(float(c[key]) * s, l0)
+        if c[key] is None:
+            g[key] = None
+            continue
+        # `setting_length` refuses a length under half a spacing (built one
+        # spacing long, a 0.5 m ship_gap at l0 = 2 m read 2 m), in model metres.
+        try:
+            g[key] = setting_length({key: float(c[key]) * s, "spacing": l0}, key)
+        except ValueError as error:
+            if s == 1.0:
+                raise
+            raise ValueError(f"{error} (model metres, at scale={s:g})") from None
     g["tsunami_height"] = float(c["tsunami_height"]) * s
     if (c["reservoir_length"] is None) != (c["reservoir_depth"] is None):
         raise ValueError(
