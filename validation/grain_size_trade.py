@@ -7,15 +7,18 @@ grains much smaller than the column; each halving of the grain size costs ~4x
 the grains in 2-D and more steps (the contact time step falls with the grain's
 mass). The table gives, per size: the grains, the DEM sub-steps per fluid step,
 steps, wall time per run and per grain-step, the normalised runout against the
-law (mean and spread over packings) and the deposit's angle.
+law (mean and spread over packings), where 95 % of the grains' volume lies
+(the bulk, blind to the front's single grains) and the deposit's angle.
 
 Run: python validation/grain_size_trade.py [--sizes 0.01,0.005,0.0025]
-[--seeds 0,1] [--aspect 3] [--rolling 0] (writes results/grain_size_trade_cpu.{md,json})
+[--seeds 0,1] [--aspect 3] [--rolling 0] [--restitution 0.1] [--x64] [--out NAME]
+(writes results/grain_size_trade_cpu.{md,json}, keeping the runs not repeated)
 """
 
 import argparse
 import json
 
+import jax
 import numpy as np
 from _common import HERE, machine_info
 from granular_collapse import WIDTH, lube, run
@@ -32,14 +35,26 @@ def table(runs: list[dict], info: dict) -> str:
         "(2011), 1.9 a^(2/3) for a > 2.8. Grain-steps: grains x steps (the DEM's "
         "sub-steps not counted).",
         "",
-        "| grain [mm] | across L0 | a | mu | mu_r | grains | DEM sub-steps | "
-        "packings | (L-L0)/L0 | law | ratio | angle [deg] | at rest | steps | "
-        "wall per run [s] | us per grain-step |",
-        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
+        "| grain [mm] | across L0 | a | mu | mu_r | e | float | grains | "
+        "DEM sub-steps | packings | (L-L0)/L0 | law | ratio | bulk (x95-L0)/L0 | "
+        "angle [deg] | at rest | steps | wall per run [s] | us per grain-step |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
-    groups = sorted({(r["rolling"], -r["spacing"]) for r in runs})
-    for roll, d in ((roll, -neg) for roll, neg in groups):
-        sel = [r for r in runs if (r["rolling"], r["spacing"]) == (roll, d)]
+
+    def group(r):
+        return (r["rolling"], r.get("restitution", 0.1), r.get("bits", 32))
+
+    for (roll, e, bits), d in sorted(
+        {(group(r), r["spacing"]) for r in runs}, key=lambda k: (k[0], -k[1])
+    ):
+        sel = [r for r in runs if (group(r), r["spacing"]) == ((roll, e, bits), d)]
+        bulk = np.array([r.get("bulk_reach", np.nan) for r in sel])
+        bulk_text = (
+            "-"
+            if np.isnan(bulk).all()
+            else f"{np.nanmean(bulk):.2f} +- {np.nanstd(bulk):.2f}"
+            + ("" if not np.isnan(bulk).any() else f" ({np.sum(~np.isnan(bulk))})")
+        )
         first = sel[0]
         runout = np.array([r["normalised_runout"] for r in sel])
         angle = np.array([r["angle_deg"] for r in sel])
@@ -49,11 +64,12 @@ def table(runs: list[dict], info: dict) -> str:
         per = 1e6 * wall / (steps * first["grains"])
         lines.append(
             f"| {d * 1e3:g} | {WIDTH / d:.0f} | {first['aspect']:g} | "
-            f"{first['friction']:g} | {roll:g} | {first['grains']} | "
+            f"{first['friction']:g} | {roll:g} | {e:g} | {bits} | {first['grains']} | "
             f"{first['substeps']} | "
             f"{len(sel)} | {runout.mean():.2f} +- {runout.std():.2f} | "
             f"{'-' if law is None else f'{law:.2f}'} | "
             f"{'-' if law is None else f'{runout.mean() / law:.2f}'} | "
+            f"{bulk_text} | "
             f"{np.nanmean(angle):.1f} +- {np.nanstd(angle):.1f} | "
             f"{'yes' if all(r['settled'] for r in sel) else 'no'} | {steps:.0f} | "
             f"{wall:.0f} | {per:.1f} |"
@@ -62,7 +78,19 @@ def table(runs: list[dict], info: dict) -> str:
 
 
 def key(row: dict) -> tuple:
-    return tuple(row[k] for k in ("aspect", "friction", "rolling", "spacing", "seed"))
+    defaults = {"bits": 32, "restitution": 0.1}
+    return tuple(
+        row.get(k, defaults.get(k))
+        for k in (
+            "aspect",
+            "friction",
+            "rolling",
+            "restitution",
+            "spacing",
+            "seed",
+            "bits",
+        )
+    )
 
 
 def main():
@@ -73,8 +101,13 @@ def main():
     parser.add_argument("--friction", type=float, default=0.5)
     parser.add_argument("--rolling", type=float, default=0.0)
     parser.add_argument("--t-end", type=float, default=1.5)
+    parser.add_argument("--restitution", type=float, default=0.1)
+    parser.add_argument("--x64", action="store_true", help="run in float64")
+    parser.add_argument("--out", default="grain_size_trade_cpu")
     args = parser.parse_args()
-    path = HERE / "results" / "grain_size_trade_cpu"
+    if args.x64:
+        jax.config.update("jax_enable_x64", True)
+    path = HERE / "results" / args.out
     # Runs already in the file are kept; one measured again is replaced.
     runs = []
     if path.with_suffix(".json").exists():
@@ -82,9 +115,16 @@ def main():
     for d in [float(v) for v in args.sizes.split(",")]:
         for seed in [int(v) for v in args.seeds.split(",")]:
             row = run(
-                args.aspect, args.friction, args.t_end, seed, args.rolling, spacing=d
+                args.aspect,
+                args.friction,
+                args.t_end,
+                seed,
+                args.rolling,
+                spacing=d,
+                restitution=args.restitution,
             )
             row["machine"] = machine_info()
+            row["bits"] = 64 if args.x64 else 32
             runs = [r for r in runs if key(r) != key(row)] + [row]
             print(json.dumps({k: v for k, v in row.items() if "history" not in k}))
             info = machine_info()

@@ -70,6 +70,15 @@ def surface_angle(x: np.ndarray, top: np.ndarray, d: float) -> float:
     return float(math.degrees(math.atan(-slope)))
 
 
+def bulk_reach(x: np.ndarray, d: np.ndarray, share: float = 0.95) -> float:
+    """The x [m] behind which `share` of the grains' volume lies: where the
+    deposit's bulk ends, blind to the thin front of single grains that the
+    runout probe follows."""
+    order = np.argsort(x)
+    volume = np.cumsum(d[order] ** 3)
+    return float(x[order][np.searchsorted(volume, share * volume[-1])])
+
+
 def run(
     aspect: float,
     friction: float,
@@ -77,6 +86,7 @@ def run(
     seed: int,
     rolling: float = 0.0,
     spacing: float = SPACING,
+    restitution: float = 0.1,
 ) -> dict:
     """One collapse of grains `spacing` across (the largest; the sizes spread
     20 % below it)."""
@@ -86,6 +96,7 @@ def run(
         spacing=spacing,
         friction=friction,
         rolling=rolling,
+        restitution=restitution,
         floor_length=max(0.3, WIDTH * (2.5 + 3 * aspect)),
         t_end=t_end,
         seed=seed,
@@ -113,6 +124,7 @@ def run(
         aspect=aspect,
         friction=friction,
         rolling=rolling,
+        restitution=restitution,
         seed=seed,
         spacing=spacing,
         grains=int(case.scene.grains.count),
@@ -127,6 +139,7 @@ def run(
         ratio_to_lube=None if law is None else float(normalised / law),
         final_height_over_l0=float(height[-1] / WIDTH),
         angle_deg=surface_angle(x[:, 0], x[:, 1] + 0.5 * d, spacing),
+        bulk_reach=(bulk_reach(x[:, 0], d) - WIDTH) / WIDTH,
         largest_speed=speed,
         settled=settled,
         runout_history=runout.tolist(),
