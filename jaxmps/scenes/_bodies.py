@@ -304,12 +304,7 @@ def floating_box(**overrides) -> Case:
     x0 = whole(0.5 * (length - bw), l0)
     draft = _release_draft(c, bw, bh, depth)
     fluid = geometry.block([0.0] * dim, [length] + across + [depth], l0)
-    box = geometry.block(
-        [x0] + [0.0] * (dim - 2) + [depth], [x0 + bw] + across + [depth + bh], l0
-    )
-    box = _round_bilges(box, x0, bw, depth, float(c["bilge_radius"]))
-    keel = float(box[:, -1].min() - box[:, -1].mean()) - 0.5 * l0
-    box[:, -1] -= draft
+    box, keel = _floating_hull(c, x0, bw, bh, across, depth, draft)
     mass_properties = _mass_properties(c, box, depth - draft)
     if c["heel"]:
         box = _rotate(box, box.mean(axis=0), float(c["heel"]))
@@ -338,15 +333,7 @@ def floating_box(**overrides) -> Case:
         _orientation(dim, float(c["heel"])),
     )
     settle = _floating_settle(c, depth)
-    if settle > 0:
-        # `settle_damping`: the water's velocities zeroed 16 times per period of
-        # its column, 4 depth / c, while the box is held; explicit solver only.
-        damp_every = (
-            0.25 * depth / c["sound_speed"]
-            if c["settle_damping"] and c["solver"] == "explicit"
-            else None
-        )
-        state = _held_spin_up(scene, params, state, settle, damp_every)
+    state = _floating_release(c, scene, params, state, settle, depth)
     probes = _floating_probes(c, length, across, x0, bw, keel)
     config = {
         **c,
@@ -507,6 +494,34 @@ def _floating_settle(c: dict, depth: float) -> float:
     if c["solver"] != "explicit":
         return 0.0
     return 5 * 4 * depth / c["sound_speed"]
+
+
+def _floating_hull(c: dict, x0, bw, bh, across, depth, draft):
+    """The box's particles (bilges rounded by `bilge_radius`) floating at `draft`
+    with its left face at `x0`, and its keel's height below its centre less l0/2
+    [m] (the keel gauge's offset)."""
+    l0, dim = c["spacing"], int(c["dim"])
+    box = geometry.block(
+        [x0] + [0.0] * (dim - 2) + [depth], [x0 + bw] + across + [depth + bh], l0
+    )
+    box = _round_bilges(box, x0, bw, depth, float(c["bilge_radius"]))
+    keel = float(box[:, -1].min() - box[:, -1].mean()) - 0.5 * l0
+    box[:, -1] -= draft
+    return box, keel
+
+
+def _floating_release(c: dict, scene, params, state, settle: float, depth: float):
+    """`floating_box`'s state at the release: after `settle` s with the box held
+    (none where 0), the explicit water's velocities zeroed 16 times per period of
+    its column, 4 `depth` / c, where `settle_damping` (`_held_spin_up`)."""
+    if not settle > 0:
+        return state
+    damp_every = (
+        0.25 * depth / c["sound_speed"]
+        if c["settle_damping"] and c["solver"] == "explicit"
+        else None
+    )
+    return _held_spin_up(scene, params, state, settle, damp_every)
 
 
 def _held_spin_up(scene, params, state, duration, damp_every=None):
