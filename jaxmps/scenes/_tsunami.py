@@ -291,11 +291,6 @@ def _check_ship(c: dict, g: dict) -> None:
         raise ValueError(
             "ship_draft must be below sea_depth: the ship would rest on the sea bed."
         )
-    if not g["ship_gap"] >= l0:
-        raise ValueError(
-            f"ship_gap={c['ship_gap']:g} puts the ship into the quay; give at least "
-            "one spacing (scaled)."
-        )
     if g["sea_length"] - g["ship_gap"] - g["ship_beam"] < 4 * l0:
         raise ValueError(
             "The ship reaches the inflow boundary; lengthen sea_length or shorten "
