@@ -15,6 +15,7 @@ from jaxmps.neighbours import (
     build,
     candidate_counts,
     carried_search,
+    lists_hold,
     reuse_or_build,
 )
 
@@ -205,9 +206,9 @@ def test_lists_are_searched_again_after_a_long_move_or_a_new_particle(rng):
         ref = brute_force_neighbours(x, active, radius)
         np.testing.assert_array_equal(_within(got.index, x, radius), ref)
 
-    # One particle moves by 0.6 skin (to where it gains neighbours), the rest stay.
+    # One particle moves by 1.1 skin (to where it gains neighbours), the rest stay.
     x1 = x0.copy()
-    x1[0] += [0.6 * skin, 0.0]
+    x1[0] += [1.1 * skin, 0.0]
     check(x1, active)
     # Nobody moves, but a pool slot is switched on next to particle 0.
     x2 = x0.copy()
@@ -247,9 +248,9 @@ def test_a_batch_decides_jointly_and_keeps_the_branch(rng):
     grid = _SKIN_GRID
     first = build(grid, jnp.asarray(x0), active, 150, radius, skin)
     cache = NeighbourCache.of(first, jnp.asarray(x0), active)
-    # Member 0 stays within half the skin, member 1 moves one particle beyond it.
+    # Member 0 stays put, member 1 moves one particle by more than the skin.
     x1 = x0.copy()
-    x1[3] += [0.6 * skin, 0.0]
+    x1[3] += [1.1 * skin, 0.0]
     xs = jnp.asarray(np.stack([x0, x1]))
     caches = jax.tree.map(lambda a: jnp.stack([a, a]), cache)
 
@@ -327,7 +328,8 @@ def test_carried_lists_add_up_the_moves_since_their_search(rng):
     nbrs, cache1 = search(x0 + step, cache)
     np.testing.assert_array_equal(np.asarray(nbrs.index), np.asarray(first.index))
     np.testing.assert_array_equal(np.asarray(cache1.position), x0)
-    # Another 0.3 skin (0.6 in all, beyond half the skin): searched again there.
+    # Another 0.3 skin (0.6 in all, in random directions: pairs moved apart or
+    # together by more than the skin): searched again there.
     x2 = x0 + 2 * step
     nbrs, cache2 = search(x2, cache1)
     new = build(_SKIN_GRID, jnp.asarray(x2), active, 150, radius, skin)
@@ -336,6 +338,104 @@ def test_carried_lists_add_up_the_moves_since_their_search(rng):
     np.testing.assert_array_equal(
         _within(nbrs.index, x2, radius),
         brute_force_neighbours(x2, np.ones(n, bool), radius),
+    )
+
+
+def _sliding_layer(skin):
+    """A lattice of 'water' (rows 1-8) over a fixed 'wall' row, spacing 0.05."""
+    xs = np.arange(0.1, 0.9, 0.05)
+    wall = np.stack(np.meshgrid(xs, [0.1]), -1).reshape(-1, 2)
+    water = np.stack(np.meshgrid(xs[2:-2], 0.1 + 0.05 * np.arange(1, 9)), -1)
+    return wall, water.reshape(-1, 2)
+
+
+@pytest.mark.parametrize(
+    "move, carried",
+    [
+        # Water sliding along the wall: pairs move by the water's move.
+        ((0.9, 0.0), True),
+        ((1.1, 0.0), False),
+        # Water and wall shifted together far beyond half the skin (a frame
+        # moving as a whole): no pair has moved.
+        ((3.0, 2.0), True),
+    ],
+)
+def test_lists_are_carried_while_no_pair_has_moved_by_the_skin(move, carried):
+    radius, skin = 0.15, 0.03
+    wall, water = _sliding_layer(skin)
+    x0 = np.concatenate([wall, water])
+    n = len(x0)
+    active = jnp.ones(n, bool)
+    first = build(_SKIN_GRID, jnp.asarray(x0), active, 150, radius, skin)
+    cache = NeighbourCache.of(first, jnp.asarray(x0), active)
+    x1 = x0.copy()
+    moving = slice(len(wall), None) if move[1] == 0.0 else slice(None)
+    x1[moving] += skin * np.asarray(move)
+    got, _ = carried_search(
+        _SKIN_GRID, jnp.asarray(x1), active, 150, radius, skin, cache
+    )
+    if carried:
+        np.testing.assert_array_equal(np.asarray(got.index), np.asarray(first.index))
+    else:
+        new = build(_SKIN_GRID, jnp.asarray(x1), active, 150, radius, skin)
+        np.testing.assert_array_equal(np.asarray(got.index), np.asarray(new.index))
+    ref = brute_force_neighbours(x1, np.ones(n, bool), radius)
+    np.testing.assert_array_equal(_within(got.index, x1, radius), ref)
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+def test_carried_lists_never_miss_a_pair_under_random_smooth_moves(rng, dim):
+    # Moves = a random translation + a random linear field + noise, at amplitudes
+    # that straddle the skin: whenever the lists are kept, a brute-force search
+    # finds no pair closer than the radius that they miss.
+    n, radius, skin = (300, 0.15, 0.03) if dim == 2 else (400, 0.25, 0.05)
+    grid = Grid(
+        origin=(0.0,) * dim,
+        cell_size=(radius + skin) / 2,
+        shape=(12,) * dim if dim == 2 else (7,) * dim,
+        candidate_capacity=300 if dim == 2 else 600,
+        reach=2,
+    )
+    x0 = rng.uniform(0.1, 0.9, (n, dim))
+    active = rng.uniform(size=n) > 0.1
+    first = build(grid, jnp.asarray(x0), jnp.asarray(active), 150, radius, skin)
+    cache = NeighbourCache.of(first, jnp.asarray(x0), jnp.asarray(active))
+    search = jax.jit(
+        lambda x: carried_search(grid, x, jnp.asarray(active), 150, radius, skin, cache)
+    )
+    kept_beyond_half = searched = 0
+    for _ in range(40):
+        scale = skin * rng.uniform(0.2, 3.0)
+        move = scale * (
+            rng.normal(size=dim)
+            + 0.5 * (x0 - 0.5) @ rng.normal(size=(dim, dim))
+            + rng.uniform(0.0, 0.3) * rng.normal(size=(n, dim))
+        )
+        x1 = x0 + move
+        got, _ = search(jnp.asarray(x1))
+        kept = np.array_equal(np.asarray(got.index), np.asarray(first.index))
+        largest = np.linalg.norm(move[active], axis=1).max()
+        kept_beyond_half += kept and largest > skin / 2
+        searched += not kept
+        ref = brute_force_neighbours(x1, active, radius)
+        np.testing.assert_array_equal(_within(got.index, x1, radius), ref)
+    # Both outcomes were drawn, and lists were kept beyond the plain test's reach.
+    assert kept_beyond_half > 0 and searched > 0
+
+
+def test_lists_are_not_kept_after_a_non_finite_move():
+    radius, skin = 0.15, 0.03
+    wall, water = _sliding_layer(skin)
+    x0 = np.concatenate([wall, water])
+    active = jnp.ones(len(x0), bool)
+    moved = jnp.zeros_like(jnp.asarray(x0)).at[5, 0].set(jnp.nan)
+    assert not bool(
+        lists_hold(_SKIN_GRID, jnp.asarray(x0), moved, active, radius, skin)
+    )
+    assert bool(
+        lists_hold(
+            _SKIN_GRID, jnp.asarray(x0), jnp.zeros_like(moved), active, radius, skin
+        )
     )
 
 

@@ -232,7 +232,9 @@ def build(
         # The skin's pairs only where every particle's fit (a whole-list choice, so
         # that carried lists are complete or not carried).
         in_reach = candidate & (dist2 < reach**2)
-        with_skin = jnp.max(jnp.sum(in_reach, axis=1)) <= max_neighbours
+        with_skin = (
+            jnp.max(jnp.sum(in_reach, axis=1, dtype=jnp.int32)) <= max_neighbours
+        )
         hit = jnp.where(with_skin, in_reach, hit)
     chosen = first_hits(hit, slot, max_neighbours, n)
     index = jnp.append(order, jnp.int32(n))[chosen]
@@ -249,12 +251,13 @@ def build(
 class NeighbourCache(eqx.Module):
     """Neighbour lists carried from search to search (a Verlet list).
 
-    Lists are built within r_e + skin. While no particle has moved by half the
-    skin since the build, and no slot has been switched on or off, every pair
-    closer than r_e lies in the carried lists, so a step uses them at its start
-    (r^k) and at its predicted positions (r*) instead of searching
-    (`carried_search`); the positions of the build are kept, so the moves add up
-    over the steps until the next search.
+    Lists are built within r_e + skin. While no two particles that can have
+    become neighbours have moved apart or together by the skin since the build
+    (`lists_hold`), and no slot has been switched on or off, every pair closer
+    than r_e lies in the carried lists, so a step uses them at its start (r^k) and
+    at its predicted positions (r*) instead of searching (`carried_search`); the
+    positions of the build are kept, so the moves add up over the steps until the
+    next search.
 
     Attributes:
         index: the carried lists, sentinel n in empty slots.
@@ -291,6 +294,65 @@ class NeighbourCache(eqx.Module):
         )
 
 
+def lists_hold(
+    grid: Grid,
+    built_at: Float[Array, "n d"],
+    moved: Float[Array, "n d"],
+    active: Bool[Array, " n"],
+    radius: float,
+    skin: float,
+) -> Bool[Array, ""]:
+    """Whether lists built within `radius` + `skin` at `built_at` still hold every
+    pair closer than `radius` after the moves `moved` (the relative-displacement
+    criterion of a Verlet list).
+
+    A pair (i, j) closer than `radius` now was closer than radius + |m_i - m_j|
+    at the build, so it is listed if |m_i - m_j| < skin. The plain test, every
+    move under skin / 2, bounds |m_i - m_j| by twice the largest move; where it
+    fails (a fast front), the moves are compared within regions: cells of edge
+    h = 2 `grid.radius` at the build's positions, each with the bounding box of
+    the moves over its 3^d block of cells. While every move is under
+    (h - radius) / 2, a pair that can have come within `radius` lies within one
+    such block, and the box's diagonal bounds its relative move. Water sliding
+    past a fixed wall may thus move by the whole skin before a search (twice as
+    far as the plain test allows), water moving together further still.
+    Non-finite moves fail both tests.
+    """
+    dim = built_at.shape[1]
+    sq = jnp.where(active, last_axis_dot(moved, moved), 0.0)
+    largest = jnp.max(sq)
+    everywhere = 4 * largest < skin**2
+    size = 2 * grid.radius
+    factor = 2 * grid.reach
+    shape = tuple(-(-cells // factor) for cells in grid.shape)
+
+    def within_regions():
+        origin = jnp.asarray(grid.origin, dtype=built_at.dtype)
+        coords = jnp.floor((built_at - origin[None, :]) / size).astype(jnp.int32)
+        coords = jnp.clip(coords, 0, jnp.asarray(shape, dtype=jnp.int32)[None, :] - 1)
+        cell = jnp.where(active, _flatten(coords, shape), int(np.prod(shape)))
+        n_cells = int(np.prod(shape))
+        extent2 = jnp.zeros(shape, moved.dtype)
+        occupied = None
+        for axis in range(dim):
+            m = moved[:, axis]
+            lo = jax.ops.segment_min(m, cell, n_cells).reshape(shape)
+            hi = jax.ops.segment_max(m, cell, n_cells).reshape(shape)
+            if occupied is None:
+                occupied = hi >= lo
+            window, pad = (3,) * dim, ((1, 1),) * dim
+            lo = jax.lax.reduce_window(
+                lo, jnp.inf, jax.lax.min, window, (1,) * dim, pad
+            )
+            hi = jax.lax.reduce_window(
+                hi, -jnp.inf, jax.lax.max, window, (1,) * dim, pad
+            )
+            extent2 = extent2 + jnp.where(occupied, hi - lo, 0.0) ** 2
+        return (jnp.max(extent2) < skin**2) & (4 * largest < (size - radius) ** 2)
+
+    return everywhere | jax.lax.cond(everywhere, lambda: True, within_regions)
+
+
 def carried_search(
     grid: Grid,
     position: Float[Array, "n d"],
@@ -302,15 +364,11 @@ def carried_search(
     batch_axis: str | None = None,
 ) -> tuple[Neighbours, NeighbourCache]:
     """Neighbour lists within `radius` at `position`, and the cache to carry on:
-    the cached lists (and the same cache) while they still hold every such pair,
-    else a new search (`build` with `skin`) and a cache of its lists.
-
-    The cached lists were built with radius + skin at `cache.position`. A pair
-    closer than `radius` now was closer than radius + skin then if each of its
-    particles has moved by less than skin / 2, so the cached lists hold every pair
-    a new search would find (plus some beyond `radius`, which the pair geometry
-    masks). The slot order differs from a new search, so sums over neighbours agree
-    to round-off, not bit for bit.
+    the cached lists (and the same cache) while they still hold every such pair
+    (`lists_hold`), else a new search (`build` with `skin`) and a cache of its
+    lists. The cached lists hold some pairs beyond `radius` too, which the pair
+    geometry masks; their slot order differs from a new search's, so sums over
+    neighbours agree to round-off, not bit for bit.
 
     The choice is a `lax.cond`. Under a plain `vmap` it becomes a select that runs
     the search as well, so batched runs keep the results but not the saving. With
@@ -320,9 +378,11 @@ def carried_search(
     searches, and the choice stays a branch.
     """
     x = jax.lax.stop_gradient(position)
-    moved = last_axis_dot(x - cache.position, x - cache.position)
-    moved = jnp.max(jnp.where(active, moved, 0.0))
-    reusable = cache.valid & jnp.all(active == cache.active) & (4 * moved < skin**2)
+    reusable = (
+        cache.valid
+        & jnp.all(active == cache.active)
+        & lists_hold(grid, cache.position, x - cache.position, active, radius, skin)
+    )
     if batch_axis is not None:
         # One decision for the whole batch.
         reusable = jax.lax.pmin(reusable.astype(jnp.int32), batch_axis) > 0
