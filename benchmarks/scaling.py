@@ -8,8 +8,8 @@ compile timed apart), particle-steps/s, CG iterations per step (semi-implicit), 
 the cost of a neighbour search against the step's (a build jitted alone, times the
 searches a step makes at most, over the step time: one when the lists are carried
 from step to step, `Scene.neighbour_skin` > 0, the default, two without; a step
-with carried lists searches only once a particle has moved half the skin since
-the last search, so above 100 % most steps searched not at all). The slope is the
+with carried lists searches only once some pair has moved by the skin since the
+last search, so above 100 % most steps searched not at all). The slope is the
 least-squares fit of log(ms/step) on log(particles) over all sizes.
 
     python benchmarks/scaling.py                       # float32, 1k-100k, ~10 min
@@ -82,7 +82,7 @@ def measure(
         return nb.index
 
     # With carried lists a step searches at most once (at its predicted positions,
-    # when a particle has moved half the skin since the last search: make_scene's
+    # when some pair has moved by the skin since the last search: make_scene's
     # `neighbour_skin`), without them twice: the share is an upper bound.
     searches = 1 if scene.neighbour_skin > 0 else 2
 
@@ -154,8 +154,8 @@ def main(argv=None):
         f"{info['loadavg_1min_end']} at end",
         f"- {args.steps} steps after 20; best of 2 after a warm-up call",
         "- build share: one search (jitted alone) per step at most, over the step "
-        "time; a step with carried lists searches only once a particle has moved "
-        "half the skin, so above 100 % most steps did not search",
+        "time; a step with carried lists searches only once some pair has moved "
+        "by the skin, so above 100 % most steps did not search",
         "",
         "| solver | scheme | particles | ms/step | particle-steps/s | CG it. | "
         "build share | compile [s] |",

@@ -74,7 +74,8 @@ def make_scene(
             neighbour count as candidates in 2-D; 1 about 4x).
         neighbour_skin: in units of l0; the lists are searched within r_e + skin
             so that `simulate` can carry them from search to search until some
-            particle has moved by half the skin (`Scene.neighbour_skin`). Where
+            pair has moved apart or together by the skin (`Scene.neighbour_skin`,
+            `neighbours.lists_hold`). Where
             the skin's pairs do not fit in `max_neighbours` slots, a search lists
             those within r_e only and the next one searches again. 0.3 holds the
             regular lattice's pairs within 2.4 l0 (20 in 2-D, 56 in 3-D, within the

@@ -40,9 +40,9 @@ class Scene(eqx.Module):
         max_neighbours: neighbour slots per particle.
         neighbour_skin: the lists are searched within r_e + neighbour_skin [m], so
             that a rollout carries them from search to search, at the steps'
-            starts and predicted positions alike, while no particle has moved by
-            half the skin (`neighbours.NeighbourCache`); 0 searches twice per
-            step.
+            starts and predicted positions alike, while no pair of particles has
+            moved apart or together by the skin (`neighbours.lists_hold`); 0
+            searches twice per step.
         courant_limit: largest max|u| dt / l0 accepted before `Result.step_too_large`.
         viscous_limit: largest viscous number 2 d nu dt / lambda accepted (the
             explicit viscous term's diffusion limit); beyond it a concrete dt is
