@@ -582,8 +582,8 @@ def _jit_step(
 def with_neighbour_lists(scene: Scene, state: State) -> State:
     """`state` carrying (empty) neighbour lists, so that each `step` passes its
     lists on to the next (a new search only when some pair has moved apart or
-    together by `Scene.neighbour_skin`, `neighbours.lists_hold`). Unchanged if it carries lists already or the Scene
-    has no skin."""
+    together by `Scene.neighbour_skin`, `neighbours.lists_hold`). Unchanged if it
+    carries lists already or the Scene has no skin."""
     if scene.neighbour_skin <= 0 or state.neighbours is not None:
         return state
     cache = neighbours.NeighbourCache.empty(
