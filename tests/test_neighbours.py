@@ -153,11 +153,10 @@ def _within(index, x, radius):
     return out & (d < radius)
 
 
-@pytest.mark.parametrize("dim", [2, 3])
-def test_carried_lists_hold_every_pair_while_moves_stay_below_half_the_skin(rng, dim):
+def _unit_box_case(dim):
+    """(particles, radius, skin, grid of cells (radius + skin) / 2) over the unit
+    box, for random particles there."""
     n, radius, skin = (300, 0.15, 0.03) if dim == 2 else (400, 0.25, 0.05)
-    x0 = rng.uniform(0.0, 1.0, (n, dim))
-    active = rng.uniform(size=n) > 0.1
     grid = Grid(
         origin=(0.0,) * dim,
         cell_size=(radius + skin) / 2,
@@ -165,6 +164,14 @@ def test_carried_lists_hold_every_pair_while_moves_stay_below_half_the_skin(rng,
         candidate_capacity=300 if dim == 2 else 600,
         reach=2,
     )
+    return n, radius, skin, grid
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+def test_carried_lists_hold_every_pair_while_moves_stay_below_half_the_skin(rng, dim):
+    n, radius, skin, grid = _unit_box_case(dim)
+    x0 = rng.uniform(0.0, 1.0, (n, dim))
+    active = rng.uniform(size=n) > 0.1
     first = build(grid, jnp.asarray(x0), jnp.asarray(active), 150, radius, skin)
     cache = NeighbourCache.of(first, jnp.asarray(x0), jnp.asarray(active))
     # Every active particle moves by just under skin / 2 in a random direction.
@@ -388,14 +395,7 @@ def test_carried_lists_never_miss_a_pair_under_random_smooth_moves(rng, dim):
     # Moves = a random translation + a random linear field + noise, at amplitudes
     # that straddle the skin: whenever the lists are kept, a brute-force search
     # finds no pair closer than the radius that they miss.
-    n, radius, skin = (300, 0.15, 0.03) if dim == 2 else (400, 0.25, 0.05)
-    grid = Grid(
-        origin=(0.0,) * dim,
-        cell_size=(radius + skin) / 2,
-        shape=(12,) * dim if dim == 2 else (7,) * dim,
-        candidate_capacity=300 if dim == 2 else 600,
-        reach=2,
-    )
+    n, radius, skin, grid = _unit_box_case(dim)
     x0 = rng.uniform(0.1, 0.9, (n, dim))
     active = rng.uniform(size=n) > 0.1
     first = build(grid, jnp.asarray(x0), jnp.asarray(active), 150, radius, skin)
