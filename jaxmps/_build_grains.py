@@ -26,6 +26,9 @@ CONTACT_CAPACITY = {2: 16, 3: 32}
 # candidates a grain has at the start (a heap settles denser than it starts).
 CANDIDATE_MARGIN = 2.0
 
+# Kinds whose walls make grains feel bodies (`Grains.on_bodies`).
+BODY_KINDS = (int(Kind.RIGID), int(Kind.ELASTIC))
+
 
 def add_grains(
     scene: Scene,
@@ -174,9 +177,53 @@ def add_grains(
             if bed.any()
             else scene.n0
         )
-    body_kinds = [int(Kind.RIGID), int(Kind.ELASTIC)]
-    model = bodies.Grains(
-        count=len(index),
+    model = _grains_model(
+        scene,
+        params,
+        grain_params,
+        sizes,
+        submerged,
+        grid,
+        radius,
+        on_bodies=bool(on_bodies) and bool(np.isin(kind[walls], BODY_KINDS).any()),
+        bed=bed,
+        packed_density=packed_density,
+        contact_capacity=contact_capacity,
+        substeps=substeps,
+        on_fluid=on_fluid,
+        detach_distance=detach_distance,
+        junction_correction=junction_correction,
+        courant=courant,
+        dashpot_ramp=dashpot_ramp,
+    )
+    return _with_grains(
+        scene, params, state, model, grain_params, index, walls, sizes, bed
+    )
+
+
+def _grains_model(
+    scene,
+    params,
+    grain_params,
+    sizes,
+    submerged,
+    grid,
+    radius,
+    *,
+    on_bodies,
+    bed,
+    packed_density,
+    contact_capacity,
+    substeps,
+    on_fluid,
+    detach_distance,
+    junction_correction,
+    courant,
+    dashpot_ramp,
+) -> bodies.Grains:
+    """The grains' static model from `add_grains`' settings."""
+    return bodies.Grains(
+        count=len(sizes),
         spacing=scene.spacing,
         grid=grid,
         search_radius=radius,
@@ -185,7 +232,7 @@ def add_grains(
         else int(contact_capacity),
         substeps=_substeps(params, grain_params, sizes, submerged, substeps),
         submerged=submerged,
-        on_bodies=bool(on_bodies) and bool(np.isin(kind[walls], body_kinds).any()),
+        on_bodies=on_bodies,
         on_fluid=bool(on_fluid),
         bed=bool(bed.any()),
         detach_distance=float(detach_distance),
@@ -194,7 +241,14 @@ def add_grains(
         courant=float(courant),
         dashpot_ramp=float(dashpot_ramp),
     )
+
+
+def _with_grains(scene, params, state, model, grain_params, index, walls, sizes, bed):
+    """The case with `model`'s grains in it: the particles `index` become grains
+    (those of the bed walls until detached), checked as a rollout would check
+    them."""
     sub = _grain_state(scene, state, model, index, walls, sizes, bed)
+    kind = np.array(state.kind)
     kind[index] = np.where(bed, int(Kind.WALL), int(Kind.SEDIMENT))
     new_params = dataclasses.replace(params, grains=grain_params)
     new_state = dataclasses.replace(
