@@ -325,29 +325,26 @@ def lists_hold(
     size = 2 * grid.radius
     factor = 2 * grid.reach
     shape = tuple(-(-cells // factor) for cells in grid.shape)
+    n_cells = int(np.prod(shape))
+    window, strides, pad = (3,) * dim, (1,) * dim, ((1, 1),) * dim
 
     def within_regions():
         origin = jnp.asarray(grid.origin, dtype=built_at.dtype)
         coords = jnp.floor((built_at - origin[None, :]) / size).astype(jnp.int32)
         coords = jnp.clip(coords, 0, jnp.asarray(shape, dtype=jnp.int32)[None, :] - 1)
-        cell = jnp.where(active, _flatten(coords, shape), int(np.prod(shape)))
-        n_cells = int(np.prod(shape))
+        # Inactive particles get an id past the last region: segment ops drop it.
+        cell = jnp.where(active, _flatten(coords, shape), n_cells)
+        columns = [moved[:, axis] for axis in range(dim)]
+        lo = [jax.ops.segment_min(m, cell, n_cells).reshape(shape) for m in columns]
+        hi = [jax.ops.segment_max(m, cell, n_cells).reshape(shape) for m in columns]
+        occupied = hi[0] >= lo[0]  # an empty region's min is +inf, its max -inf
         extent2 = jnp.zeros(shape, moved.dtype)
-        occupied = None
-        for axis in range(dim):
-            m = moved[:, axis]
-            lo = jax.ops.segment_min(m, cell, n_cells).reshape(shape)
-            hi = jax.ops.segment_max(m, cell, n_cells).reshape(shape)
-            if occupied is None:
-                occupied = hi >= lo
-            window, pad = (3,) * dim, ((1, 1),) * dim
-            lo = jax.lax.reduce_window(
-                lo, jnp.inf, jax.lax.min, window, (1,) * dim, pad
+        for low, high in zip(lo, hi, strict=True):
+            low = jax.lax.reduce_window(low, jnp.inf, jax.lax.min, window, strides, pad)
+            high = jax.lax.reduce_window(
+                high, -jnp.inf, jax.lax.max, window, strides, pad
             )
-            hi = jax.lax.reduce_window(
-                hi, -jnp.inf, jax.lax.max, window, (1,) * dim, pad
-            )
-            extent2 = extent2 + jnp.where(occupied, hi - lo, 0.0) ** 2
+            extent2 = extent2 + jnp.where(occupied, high - low, 0.0) ** 2
         return (jnp.max(extent2) < skin**2) & (4 * largest < (size - radius) ** 2)
 
     return everywhere | jax.lax.cond(everywhere, lambda: True, within_regions)
