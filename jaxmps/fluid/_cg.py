@@ -24,14 +24,21 @@ def _pcg(matvec, b, x0, precondition, rtol, atol, max_iterations):
     tol = jnp.maximum(rtol * b_norm, atol)
     r0 = b - matvec(x0)
     z0 = precondition(r0)
-    init = (x0, r0, z0, z0, vdot(r0, z0), jnp.asarray(0, jnp.int32))
+    # The search direction p = z + beta p_old is formed at the start of the next
+    # iteration, from the carried z: then the preconditioner's output has one
+    # consumer in an iteration (the carry; the dots read it), and XLA's CPU backend
+    # does not recompute the V-cycle's last fine product inside the direction's
+    # update (which split its gathers into 24 kernels: benchmarks/NOTES.md §22).
+    beta0, it0 = jnp.zeros((), b.dtype), jnp.asarray(0, jnp.int32)
+    init = (x0, r0, z0, jnp.zeros_like(x0), beta0, vdot(r0, z0), it0)
 
     def cond(carry):
-        _, r, _, _, _, it = carry
+        _, r, _, _, _, _, it = carry
         return (jnp.linalg.norm(r) > tol) & (it < max_iterations)
 
     def body(carry):
-        x, r, z, p, rz, it = carry
+        x, r, z, p, beta, rz, it = carry
+        p = z + beta * p
         ap = matvec(p)
         p_ap = vdot(p, ap)
         alpha = jnp.where(p_ap > 0, rz / jnp.where(p_ap > 0, p_ap, 1.0), 0.0)
@@ -44,9 +51,9 @@ def _pcg(matvec, b, x0, precondition, rtol, atol, max_iterations):
         # preconditioner in a float64 solve: flexible CG, Notay 2000).
         beta = vdot(r, z_new - z) / jnp.where(rz > 0, rz, 1.0)
         beta = jnp.where(rz > 0, jnp.maximum(beta, 0.0), 0.0)
-        return x, r, z_new, z_new + beta * p, rz_new, it + 1
+        return x, r, z_new, p, beta, rz_new, it + 1
 
-    x, r, _, _, _, it = jax.lax.while_loop(cond, body, init)
+    x, r, _, _, _, _, it = jax.lax.while_loop(cond, body, init)
     r_norm = jnp.linalg.norm(r)
     residual = r_norm / jnp.where(b_norm > 0, b_norm, 1.0)
     return x, SolveInfo(iterations=it, residual=residual, converged=r_norm <= tol)
