@@ -194,13 +194,46 @@ def _safe_inverse(d):
     return jnp.where(d > 0, 1.0 / jnp.where(d > 0, d, 1.0), 0.0)
 
 
+def _cell_stencil(
+    system: PressureSystem, cells: Int[Array, "n d"], shape: tuple[int, ...]
+) -> Float[Array, "..."]:
+    """The Galerkin product P^T A P of the system rows, with P the indicator of
+    the particles' `cells` on a grid of `shape` whose edge is at least r_e, as a
+    stencil: entry [s, I] couples cell I with cell I + offset s (`_box((1,) * d)`
+    order), shape (3^d,) + shape.
+
+    Each pair entry is added to the plane of its neighbour cell's offset at the
+    particle's cell, in one scatter of the (n, k) entries (sentinel slots have
+    off = 0). Masked row sums per offset and a scatter of the rows cost 3x more on
+    the CPU (benchmarks/NOTES.md §22)."""
+    dim = len(shape)
+    n1 = math.prod(shape)
+    if 3**dim * n1 >= 2**31:
+        raise ValueError(
+            f"The multigrid's finest cell grid {shape} (cells of edge r_e over the "
+            "neighbour grid's box) is too large to index in int32; shrink the "
+            "domain or give SemiImplicit(preconditioner=Jacobi())."
+        )
+    in_system = system.in_system
+    flat = jnp.ravel_multi_index(tuple(cells.T), shape, mode="clip")
+    entry = jnp.zeros(system.index.shape, jnp.int32)
+    for relative in pair_differences(cells, system.index):
+        entry = entry * 3 + jnp.clip(relative, -1, 1) + 1
+    off = jnp.where(in_system[:, None], system.off, 0.0)
+    target = (entry * n1 + flat[:, None]).reshape(-1)
+    coeff = jnp.zeros(3**dim * n1, off.dtype).at[target].add(-off.reshape(-1))
+    diag = jnp.where(in_system, system.diag, 0.0)
+    coeff = coeff.at[(3**dim // 2) * n1 + flat].add(diag)
+    return coeff.reshape((3**dim,) + tuple(shape))
+
+
 class Multigrid(AbstractPreconditioner):
     """Aggregation multigrid V-cycle (one application per CG iteration).
 
     The particles of the system are aggregated into cubic cells of edge r_e (so a
     particle's neighbours lie in the 3^d cells around its own); the coarse matrix is
     the Galerkin product P^T A P with piecewise-constant P, assembled from the pair
-    coefficients (summed per particle by neighbour-cell offset, then by cell).
+    coefficients (each added to its cell and neighbour-cell offset, `_cell_stencil`).
     Coarser levels halve the cell grid (every axis longer than 2) with the same
     Galerkin product, down to at most `coarsest_cells` cells, which are solved by
     a dense Cholesky factorisation. Every level smooths with one damped-Jacobi
@@ -275,30 +308,16 @@ class Multigrid(AbstractPreconditioner):
     def _build(self, grid, disc, position, system):
         origin, cell, shapes, factors = self.layout(grid, disc)
         dim = len(origin)
-        n, k = system.off.shape
         shape = shapes[0]
         lower = jnp.asarray(origin, position.dtype)[None, :]
         cells = jnp.floor((position - lower) / cell).astype(jnp.int32)
-        cells = jnp.clip(cells, 0, jnp.asarray(shape)[None, :] - 1)
+        cells = jnp.clip(cells, 0, jnp.asarray(shape, jnp.int32)[None, :] - 1)
         flat = jnp.ravel_multi_index(tuple(cells.T), shape, mode="clip")
         in_system = system.in_system
 
-        # Level 1: sum each particle's pair entries by the offset of the neighbour's
-        # cell (3^d classes), then the particles by cell (one row scatter).
-        # Sentinel slots have off = 0.
-        entry = jnp.zeros((n, k), jnp.int32)
-        for relative in pair_differences(cells, system.index):
-            entry = entry * 3 + jnp.clip(relative, -1, 1) + 1
-        off = jnp.where(in_system[:, None], system.off, 0.0)
-        centre = 3**dim // 2
-        rows = [
-            jnp.sum(jnp.where(entry == s, -off, 0.0), axis=1) for s in range(3**dim)
-        ]
-        rows[centre] = rows[centre] + jnp.where(in_system, system.diag, 0.0)
+        coeff = _cell_stencil(system, cells, shape)
         n1 = math.prod(shape)
-        coeff = jnp.zeros((n1, 3**dim), off.dtype).at[flat].add(jnp.stack(rows, 1))
-        coeff = coeff.T
-        levels = [(coeff.reshape((3**dim,) + shape), (1,) * dim)]
+        levels = [(coeff, (1,) * dim)]
         for f in factors:
             levels.append(_coarsen(*levels[-1], f))
         factor = _dense_factor(*levels[-1])
