@@ -285,6 +285,17 @@ def test_multigrid_cell_stencil_is_the_galerkin_product(dim, size, rng):
     assert np.isclose(np.abs(got).sum(), np.abs(coarse).sum())
 
 
+def test_multigrid_cell_grid_beyond_int32_is_refused(rng):
+    """A cell grid whose 3^d stencil planes cannot be indexed in int32 is refused
+    with the remedy named, not wrapped around."""
+    from jaxmps.fluid._precondition import _cell_stencil
+
+    _, x, system = _lattice_system(2, 6, rng)
+    cells = jnp.zeros(x.shape, jnp.int32)
+    with pytest.raises(ValueError, match="preconditioner=Jacobi"):
+        _cell_stencil(system, cells, (20_000, 20_000))
+
+
 @pytest.mark.slow
 def test_multigrid_cg_matches_dense_gradient_and_vmap(rng):
     """The multigrid-preconditioned solve gives the dense solution in fewer
