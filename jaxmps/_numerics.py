@@ -62,6 +62,24 @@ def is_concrete(*values) -> bool:
     return not any(isinstance(v, jax.core.Tracer) for v in values)
 
 
+def materialised(field: Array) -> Array:
+    """`field`, written once to memory before the gathers that read it.
+
+    XLA's CPU backend fuses a cheap producer (a cell index from positions, a
+    smoothing sweep) into the gather that reads it, and then recomputes the
+    producer for every gathered element: a cell index read by every pair slot ran
+    10x slower that way, a multigrid level's correction read by each finer cell
+    several times (benchmarks/NOTES.md §23). A scatter is never fused into its
+    consumer, so the field is copied through one (the identity; its gradient is
+    the cotangent)."""
+    rows = jnp.arange(field.shape[0])
+    return (
+        jnp.zeros_like(field)
+        .at[rows]
+        .set(field, unique_indices=True, indices_are_sorted=True)
+    )
+
+
 def take_rows(field: Array, index: Array) -> Array:
     """Gather `field[index]` along axis 0, with zeros for the sentinel index n."""
     return jnp.take(field, index, axis=0, mode="fill", fill_value=0)

@@ -285,6 +285,39 @@ def test_multigrid_cell_stencil_is_the_galerkin_product(dim, size, rng):
     assert np.isclose(np.abs(got).sum(), np.abs(coarse).sum())
 
 
+@pytest.mark.parametrize("shape", [(7, 5), (4, 3, 6), (5, 2), (3, 1, 4), (9,)], ids=str)
+def test_multigrid_pair_offsets_decoded_from_the_flat_cell_index(shape, rng):
+    """The stencil plane of each pair read from one gather of the flat cell index
+    equals its per-axis cell offset (each in [-1, 1]); pairs two cells apart (a
+    carried list's skin, coefficient 0) land in some plane in range. Grids with an
+    axis of fewer than 3 cells take the per-axis path."""
+    from jaxmps.fluid._precondition import _offset_code
+
+    dim, n, k = len(shape), 300, 8
+    upper = np.asarray(shape) - 1
+    cells = np.stack([rng.integers(0, s, n) for s in shape], axis=1)
+
+    def code(reach):
+        step = rng.integers(-reach, reach + 1, (n, k, dim))
+        partner = np.clip(cells[:, None] + step, 0, upper)
+        # the listed partners are particles of their own, after the n
+        every = np.concatenate([cells, partner.reshape(-1, dim)]).astype(np.int32)
+        index = np.concatenate(
+            [n + np.arange(n * k).reshape(n, k), np.zeros((n * k, k), int)]
+        ).astype(np.int32)
+        flat = np.ravel_multi_index(tuple(every.T), shape)
+        got = _offset_code(*map(jnp.asarray, (every, flat, index)), shape)
+        return np.asarray(got)[:n], partner - cells[:, None]
+
+    got, delta = code(1)
+    want = np.zeros((n, k), np.int64)
+    for a in range(dim):
+        want = want * 3 + delta[..., a] + 1
+    np.testing.assert_array_equal(got, want)
+    got, _ = code(2)
+    assert got.min() >= 0 and got.max() < 3**dim
+
+
 def test_multigrid_cell_grid_beyond_int32_is_refused(rng):
     """A cell grid whose 3^d stencil planes cannot be indexed in int32 is refused
     with the remedy named, not wrapped around."""

@@ -11,7 +11,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Bool, Float, Int
 
-from .._numerics import HIGHEST, pair_differences, take_rows
+from .._numerics import HIGHEST, materialised, pair_differences, take_rows
 from ..neighbours import Grid
 from ..operators import Discretisation
 
@@ -194,8 +194,51 @@ def _safe_inverse(d):
     return jnp.where(d > 0, 1.0 / jnp.where(d > 0, d, 1.0), 0.0)
 
 
+def _flat_cells(cells: Int[Array, "n d"], shape: tuple[int, ...]) -> Int[Array, " n"]:
+    """The flat index of each particle's cell, written out once (`materialised`):
+    every pair slot and every V-cycle reads it."""
+    return materialised(jnp.ravel_multi_index(tuple(cells.T), shape, mode="clip"))
+
+
+def _offset_code(
+    cells: Int[Array, "n d"],
+    flat: Int[Array, " n"],
+    index: Int[Array, "n k"],
+    shape: tuple[int, ...],
+) -> Int[Array, "n k"]:
+    """The stencil plane of every listed pair: its neighbour cell's offset from
+    the particle's own, each axis clipped to [-1, 1] and read as base-3 digits in
+    `_box((1,) * d)` order.
+
+    One gather per pair of the (materialised) flat cell index rather than one
+    per axis, the offsets decoded from the difference: flat_j - flat_i =
+    sum_a delta_a stride_a is exact while every axis but the first has at least
+    3 cells and |delta_a| <= 1, which holds for every pair within r_e of cells of
+    edge r_e. Pairs farther apart (a carried list's skin, the sentinel slot)
+    decode to some plane in range; their coefficients are 0."""
+    if min(shape[1:], default=3) < 3:
+        code = jnp.zeros(index.shape, jnp.int32)
+        for relative in pair_differences(cells, index):
+            code = code * 3 + jnp.clip(relative, -1, 1) + 1
+        return code
+    rest = take_rows(flat, index) - flat[:, None]
+    digits = []
+    for size in reversed(shape[1:]):
+        delta = jnp.remainder(rest + 1, size) - 1
+        digits.append(delta)
+        rest = (rest - delta) // size
+    digits.append(rest)
+    code = jnp.zeros(index.shape, jnp.int32)
+    for delta in reversed(digits):
+        code = code * 3 + jnp.clip(delta, -1, 1) + 1
+    return code
+
+
 def _cell_stencil(
-    system: PressureSystem, cells: Int[Array, "n d"], shape: tuple[int, ...]
+    system: PressureSystem,
+    cells: Int[Array, "n d"],
+    shape: tuple[int, ...],
+    flat: Int[Array, " n"] | None = None,
 ) -> Float[Array, "..."]:
     """The Galerkin product P^T A P of the system rows, with P the indicator of
     the particles' `cells` on a grid of `shape` whose edge is at least r_e, as a
@@ -205,7 +248,8 @@ def _cell_stencil(
     Each pair entry is added to the plane of its neighbour cell's offset at the
     particle's cell, in one scatter of the (n, k) entries (sentinel slots have
     off = 0). Masked row sums per offset and a scatter of the rows cost 3x more on
-    the CPU (benchmarks/NOTES.md §22)."""
+    the CPU (benchmarks/NOTES.md §22). `flat`: the cells' flat indices
+    (`_flat_cells`), if the caller has them."""
     dim = len(shape)
     n1 = math.prod(shape)
     if 3**dim * n1 >= 2**31:
@@ -215,10 +259,8 @@ def _cell_stencil(
             "domain or give SemiImplicit(preconditioner=Jacobi())."
         )
     in_system = system.in_system
-    flat = jnp.ravel_multi_index(tuple(cells.T), shape, mode="clip")
-    entry = jnp.zeros(system.index.shape, jnp.int32)
-    for relative in pair_differences(cells, system.index):
-        entry = entry * 3 + jnp.clip(relative, -1, 1) + 1
+    flat = _flat_cells(cells, shape) if flat is None else flat
+    entry = _offset_code(cells, flat, system.index, shape)
     off = jnp.where(in_system[:, None], system.off, 0.0)
     target = (entry * n1 + flat[:, None]).reshape(-1)
     coeff = jnp.zeros(3**dim * n1, off.dtype).at[target].add(-off.reshape(-1))
@@ -312,10 +354,10 @@ class Multigrid(AbstractPreconditioner):
         lower = jnp.asarray(origin, position.dtype)[None, :]
         cells = jnp.floor((position - lower) / cell).astype(jnp.int32)
         cells = jnp.clip(cells, 0, jnp.asarray(shape, jnp.int32)[None, :] - 1)
-        flat = jnp.ravel_multi_index(tuple(cells.T), shape, mode="clip")
+        flat = _flat_cells(cells, shape)
         in_system = system.in_system
 
-        coeff = _cell_stencil(system, cells, shape)
+        coeff = _cell_stencil(system, cells, shape, flat)
         n1 = math.prod(shape)
         levels = [(coeff, (1,) * dim)]
         for f in factors:
@@ -335,8 +377,8 @@ class Multigrid(AbstractPreconditioner):
             residual = (r - _stencil_apply(c, x, radius)).reshape(-1)
             coarse_r = jnp.zeros(math.prod(coarse_shape), r.dtype)
             coarse_r = coarse_r.at[parents[level]].add(residual)
-            e = cycle(level + 1, coarse_r.reshape(coarse_shape)).reshape(-1)
-            x = x + alpha * jnp.take(e, parents[level]).reshape(r.shape)
+            e = materialised(cycle(level + 1, coarse_r.reshape(coarse_shape)))
+            x = x + alpha * jnp.take(e.reshape(-1), parents[level]).reshape(r.shape)
             return x + omega * inverse[level] * (r - _stencil_apply(c, x, radius))
 
         inverse_0 = jnp.where(in_system, system.inverse_diagonal, 0.0)
@@ -346,7 +388,7 @@ class Multigrid(AbstractPreconditioner):
             x = omega * inverse_0 * r_s
             residual = jnp.where(in_system, r_s - system.matvec(x), 0.0)
             coarse_r = jnp.zeros(n1, r.dtype).at[flat].add(residual)
-            e = cycle(0, coarse_r.reshape(shape)).reshape(-1)
+            e = materialised(cycle(0, coarse_r.reshape(shape)).reshape(-1))
             x = x + alpha * jnp.where(in_system, jnp.take(e, flat), 0.0)
             x = x + omega * inverse_0 * (r_s - system.matvec(x))
             # Rows outside the system are the identity.
