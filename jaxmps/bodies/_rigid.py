@@ -15,7 +15,14 @@ import numpy as np
 from jaxtyping import Array, Bool, Float, Int, Shaped
 
 from .._coupling import Coupling, FluidLoad
-from .._numerics import einsum, matmul, pair_sum, safe_norm, take_rows
+from .._numerics import (
+    einsum,
+    materialised,
+    matmul,
+    pair_sum,
+    safe_norm,
+    take_rows,
+)
 from .._params import Params
 from .._state import State
 from .._types import Kind
@@ -1566,7 +1573,8 @@ def _flat(pairs, group: Int[Array, " n"], outward, l0) -> Bool[Array, " n"]:
     in_plane = (
         own & pairs.valid & (pairs.distance < 1.5 * l0) & (jnp.abs(across) < 0.5 * l0)
     )
-    return jnp.sum(in_plane, axis=1) >= 2 * (dim - 1)
+    # written out: its partners read it, which would recompute the row per pair
+    return materialised(jnp.sum(in_plane, axis=1) >= 2 * (dim - 1))
 
 
 def _snap(normal: Float[Array, "n d"]) -> Float[Array, "n d"]:
