@@ -11,7 +11,8 @@ law (mean and spread over packings), where 95 % of the grains' volume lies
 (the bulk, blind to the front's single grains) and the deposit's angle.
 
 Run: python validation/grain_size_trade.py [--sizes 0.01,0.005,0.0025]
-[--seeds 0,1] [--aspect 3] [--rolling 0] [--restitution 0.1] [--x64] [--out NAME]
+[--seeds 0,1] [--aspect 3] [--rolling 0] [--restitution 0.1] [--x64]
+[--floor-spacing M] [--contact-capacity K] [--out NAME]
 (writes results/grain_size_trade_cpu.{md,json}, keeping the runs not repeated)
 """
 
@@ -32,22 +33,28 @@ def table(runs: list[dict], info: dict) -> str:
         "",
         f"L0 = {WIDTH * 100:g} cm; each row the mean (+- std) over packings "
         "(`seed`). Law: Lube et al. (2005) as quoted by Lagree, Staron & Popinet "
-        "(2011), 1.9 a^(2/3) for a > 2.8. Grain-steps: grains x steps (the DEM's "
+        "(2011), 1.9 a^(2/3) for a > 2.8. Floor: the spacing of its wall "
+        "particles (d: the grains' size, the floor as rough as the grains are "
+        "large). Grain-steps: grains x steps (the DEM's "
         "sub-steps not counted).",
         "",
-        "| grain [mm] | across L0 | a | mu | mu_r | e | float | grains | "
+        "| grain [mm] | across L0 | a | mu | mu_r | e | float | floor [mm] | grains | "
         "DEM sub-steps | packings | (L-L0)/L0 | law | ratio | bulk (x95-L0)/L0 | "
         "angle [deg] | at rest | steps | wall per run [s] | us per grain-step |",
-        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
 
     def group(r):
-        return (r["rolling"], r.get("restitution", 0.1), r.get("bits", 32))
+        floor = r.get("floor_spacing", r["spacing"])
+        fixed = 0.0 if floor == r["spacing"] else floor  # 0: the grains' size
+        return (r["rolling"], r.get("restitution", 0.1), r.get("bits", 32), fixed)
 
-    for (roll, e, bits), d in sorted(
+    for (roll, e, bits, floor), d in sorted(
         {(group(r), r["spacing"]) for r in runs}, key=lambda k: (k[0], -k[1])
     ):
-        sel = [r for r in runs if (group(r), r["spacing"]) == ((roll, e, bits), d)]
+        sel = [
+            r for r in runs if (group(r), r["spacing"]) == ((roll, e, bits, floor), d)
+        ]
         bulk = np.array([r.get("bulk_reach", np.nan) for r in sel])
         bulk_text = (
             "-"
@@ -64,7 +71,8 @@ def table(runs: list[dict], info: dict) -> str:
         per = 1e6 * wall / (steps * first["grains"])
         lines.append(
             f"| {d * 1e3:g} | {WIDTH / d:.0f} | {first['aspect']:g} | "
-            f"{first['friction']:g} | {roll:g} | {e:g} | {bits} | {first['grains']} | "
+            f"{first['friction']:g} | {roll:g} | {e:g} | {bits} | "
+            f"{'d' if not floor else f'{floor * 1e3:g}'} | {first['grains']} | "
             f"{first['substeps']} | "
             f"{len(sel)} | {runout.mean():.2f} +- {runout.std():.2f} | "
             f"{'-' if law is None else f'{law:.2f}'} | "
@@ -78,7 +86,7 @@ def table(runs: list[dict], info: dict) -> str:
 
 
 def key(row: dict) -> tuple:
-    defaults = {"bits": 32, "restitution": 0.1}
+    defaults = {"bits": 32, "restitution": 0.1, "floor_spacing": row["spacing"]}
     return tuple(
         row.get(k, defaults.get(k))
         for k in (
@@ -89,6 +97,7 @@ def key(row: dict) -> tuple:
             "spacing",
             "seed",
             "bits",
+            "floor_spacing",
         )
     )
 
@@ -103,6 +112,19 @@ def main():
     parser.add_argument("--t-end", type=float, default=1.5)
     parser.add_argument("--restitution", type=float, default=0.1)
     parser.add_argument("--x64", action="store_true", help="run in float64")
+    parser.add_argument(
+        "--floor-spacing",
+        type=float,
+        default=None,
+        help="spacing of the floor's wall particles [m] (default: the grain size)",
+    )
+    parser.add_argument(
+        "--contact-capacity",
+        type=int,
+        default=None,
+        help="DEM contact slots per grain (grains smaller than the floor's "
+        "particles have more candidates)",
+    )
     parser.add_argument("--out", default="grain_size_trade_cpu")
     args = parser.parse_args()
     if args.x64:
@@ -122,6 +144,8 @@ def main():
                 args.rolling,
                 spacing=d,
                 restitution=args.restitution,
+                floor_spacing=args.floor_spacing,
+                contact_capacity=args.contact_capacity,
             )
             row["machine"] = machine_info()
             row["bits"] = 64 if args.x64 else 32

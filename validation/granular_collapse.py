@@ -87,13 +87,19 @@ def run(
     rolling: float = 0.0,
     spacing: float = SPACING,
     restitution: float = 0.1,
+    floor_spacing: float | None = None,
+    contact_capacity: int | None = None,
 ) -> dict:
     """One collapse of grains `spacing` across (the largest; the sizes spread
-    20 % below it)."""
+    20 % below it), on a floor of wall particles `floor_spacing` apart (default:
+    the grains' size, so that the floor's roughness scales with them)."""
+    floor = spacing if floor_spacing is None else floor_spacing
     case = jaxmps.scenes.granular_collapse(
         column_width=WIDTH,
         column_height=aspect * WIDTH,
-        spacing=spacing,
+        spacing=floor,
+        grain_diameter=spacing,
+        contact_capacity=contact_capacity,
         friction=friction,
         rolling=rolling,
         restitution=restitution,
@@ -127,6 +133,7 @@ def run(
         restitution=restitution,
         seed=seed,
         spacing=spacing,
+        floor_spacing=floor,
         grains=int(case.scene.grains.count),
         substeps=int(case.scene.grains.substeps),
         result=jaxmps._result.result_name(out.result),
