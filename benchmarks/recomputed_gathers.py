@@ -34,6 +34,22 @@ import jaxmps
 from jaxmps._simulate import _prepared, _simulate
 
 HEAVY = ("reduce", "gather", "dot", "reduce-window", "scatter", "sort")
+# Instructions that move or relabel data without computing: not counted.
+FREE = (
+    "bitcast",
+    "reshape",
+    "broadcast",
+    "constant",
+    "parameter",
+    "slice",
+    "copy",
+    "transpose",
+    "iota",
+)
+# An operand computed by this many instructions or more inside the fusion is
+# listed even without a heavy one (the multigrid's cell index took 6, a
+# V-cycle level's correction 23).
+CHAIN = 6
 DEFAULT_SCENES = (
     "dam_break:solver=explicit,"
     "dam_break:solver=semi_implicit,"
@@ -75,13 +91,14 @@ def _computations(hlo: str) -> dict[str, dict[str, tuple[str, list[str]]]]:
 
 def recomputing_fusions(hlo: str) -> dict[str, list[str]]:
     """Fused computations with a gather whose operand is computed inside them
-    from one of `HEAVY`: computation -> the heavy opcodes found."""
+    from one of `HEAVY`, or by `CHAIN` or more computing instructions:
+    computation -> what was found (the heavy opcodes, or "N ops")."""
     out = {}
     for name, body in _computations(hlo).items():
         for opcode, operands in body.values():
             if opcode != "gather":
                 continue
-            stack, seen, heavy = [operands[0]], set(), set()
+            stack, seen, heavy, count = [operands[0]], set(), set(), 0
             while stack:
                 x = stack.pop()
                 if x in seen or x not in body:
@@ -90,7 +107,10 @@ def recomputing_fusions(hlo: str) -> dict[str, list[str]]:
                 op, args = body[x]
                 if op in HEAVY:
                     heavy.add(op)
+                count += op not in FREE
                 stack.extend(args)
+            if count >= CHAIN:
+                heavy.add(f"{count} ops")
             if heavy:
                 out.setdefault(name, set()).update(heavy)
     return {k: sorted(v) for k, v in out.items()}
