@@ -1,6 +1,7 @@
 """Gathers that recompute what they read: the fusions of a compiled rollout in
 which a gather's operand is an expression computed inside the same fusion from
-a reduction, another gather, a dot, a scatter or a sort, with their traced time.
+a reduction, another gather, a dot, a scatter or a sort, or by `CHAIN` or more
+computing instructions, with their traced time.
 
 XLA's CPU backend fuses a cheap-looking producer into the gather that reads it
 and then evaluates the producer once per gathered element: a per-particle row
