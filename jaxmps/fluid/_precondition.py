@@ -217,19 +217,17 @@ def _offset_code(
     edge r_e. Pairs farther apart (a carried list's skin, the sentinel slot)
     decode to some plane in range; their coefficients are 0."""
     if min(shape[1:], default=3) < 3:
-        code = jnp.zeros(index.shape, jnp.int32)
-        for relative in pair_differences(cells, index):
-            code = code * 3 + jnp.clip(relative, -1, 1) + 1
-        return code
-    rest = take_rows(flat, index) - flat[:, None]
-    digits = []
-    for size in reversed(shape[1:]):
-        delta = jnp.remainder(rest + 1, size) - 1
-        digits.append(delta)
-        rest = (rest - delta) // size
-    digits.append(rest)
+        deltas = list(pair_differences(cells, index))
+    else:
+        rest = take_rows(flat, index) - flat[:, None]
+        deltas = []
+        for size in reversed(shape[1:]):
+            delta = jnp.remainder(rest + 1, size) - 1
+            deltas.insert(0, delta)
+            rest = (rest - delta) // size
+        deltas.insert(0, rest)
     code = jnp.zeros(index.shape, jnp.int32)
-    for delta in reversed(digits):
+    for delta in deltas:
         code = code * 3 + jnp.clip(delta, -1, 1) + 1
     return code
 
