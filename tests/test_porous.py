@@ -277,3 +277,29 @@ def test_several_regions_and_run_file_config():
     )
     assert again.scene.porous == case.scene.porous
     np.testing.assert_array_equal(again.params.porous.kappa, case.params.porous.kappa)
+
+
+def test_dam_break_wet_bed_lies_on_the_column_lattice_and_bad_depths_are_refused():
+    """`bed_depth`: still water over the floor beside the column (the porous-dam
+    experiment of calibration/porous_dam_liu1999.py stands on one), on the
+    column's lattice; a depth that is negative, not finite or not below the
+    column gets an error naming the setting."""
+    settings = dict(spacing=0.01, column_width=0.1, column_height=0.2)
+    dry = jaxmps.scenes.dam_break(**settings)
+    wet = jaxmps.scenes.dam_break(**settings, bed_depth=0.03)
+    fluid = np.asarray(wet.state.kind) == int(jaxmps.Kind.FLUID)
+    position = np.asarray(wet.state.position)[fluid]
+    n_dry = int((np.asarray(dry.state.kind) == int(jaxmps.Kind.FLUID)).sum())
+    length = wet.config["tank_length"]
+    bed = position[position[:, 0] > 0.1]
+    assert len(position) == n_dry + len(bed)
+    assert len(bed) == round((length - 0.1) / 0.01) * 3
+    assert bed[:, 1].max() == pytest.approx(0.025)
+    # One lattice: every x and y a half-integer number of spacings.
+    cells = position / 0.01 - 0.5
+    assert np.allclose(cells, np.round(cells), atol=1e-9)
+    assert wet.config["bed_depth"] == pytest.approx(0.03)
+    assert dry.config["bed_depth"] == 0.0
+    for bad in (-0.01, 0.2, float("inf")):
+        with pytest.raises(ValueError, match="bed_depth"):
+            jaxmps.scenes.dam_break(**settings, bed_depth=bad)

@@ -586,11 +586,14 @@ def tank_case(
     tank_lower,
     tank_upper,
     velocity_scale: float,
+    more_fluid=(),
 ):
-    """Fluid block in an open tank of walls and dummies: scene, params, state, extra."""
+    """Fluid block in an open tank of walls and dummies: scene, params, state, extra.
+    `more_fluid`: further (lower, upper) fluid blocks on the same lattice."""
     l0 = config["spacing"]
     layers = boundary_layers(config)
-    fluid = geometry.block(fluid_lower, fluid_upper, l0)
+    blocks = [(fluid_lower, fluid_upper), *more_fluid]
+    fluid = np.concatenate([geometry.block(lo, up, l0) for lo, up in blocks])
     walls, wall_kind = geometry.tank(tank_lower, tank_upper, l0, layers=layers)
     position = np.concatenate([fluid, walls])
     kind = np.concatenate([np.full(len(fluid), int(Kind.FLUID), np.int32), wall_kind])

@@ -1,5 +1,7 @@
 """Collapse of a water column (Martin & Moyce 1952; Koshizuka & Oka 1996)."""
 
+import math
+
 from ._case import Case
 from ._common import (
     check_gauge,
@@ -20,6 +22,7 @@ DEFAULTS = {
     "spacing": 0.00365,  # 40 particles across the column
     "dim": 2,
     "gauge_x": 0.438,  # water-level gauge position [m]
+    "bed_depth": 0.0,  # still water over the floor beside the column [m] (0: dry)
     "t_end": 0.3,
 }
 
@@ -27,6 +30,8 @@ DEFAULTS = {
 def dam_break(**overrides) -> Case:
     """Column `column_width` x `column_height` at the left wall of a tank
     `tank_length` long; default Koshizuka & Oka's 0.146 m x 0.292 m in 0.584 m.
+    `bed_depth` > 0 puts still water that deep over the rest of the floor (a dam
+    break onto a wet bed; 0, the default, leaves it dry).
 
     Probes: `front` (surge-front position from the left wall, contiguous fluid within
     2 l0 of the floor), `column_height` (residual height at the left wall),
@@ -45,6 +50,8 @@ def dam_break(**overrides) -> Case:
         )
     check_gauge(overrides, c, length)
     across = [setting_length(c, "tank_width")] if dim == 3 else []
+    bed = _bed(c, h)
+    beds = [([a] + [0.0] * (dim - 1), [length] + across + [bed])] if bed else []
     scene, params, state, extra = tank_case(
         c,
         [0.0] * dim,
@@ -52,6 +59,7 @@ def dam_break(**overrides) -> Case:
         [0.0] * dim,
         [length] + across + [height],
         velocity_scale(h, c["gravity"]),
+        beds,
     )
     n_fluid = int(state.active.sum()) - len(extra["walls"])
     mid = [0.5 * across[0]] if dim == 3 else []
@@ -75,6 +83,7 @@ def dam_break(**overrides) -> Case:
         "column_height": h,
         "tank_length": length,
         "tank_height": height,
+        "bed_depth": bed,
     }
     return Case(
         name="dam_break",
@@ -85,3 +94,23 @@ def dam_break(**overrides) -> Case:
         t_end=float(c["t_end"]),
         config=config,
     )
+
+
+def _bed(c: dict, column_height: float) -> float:
+    """The `bed_depth` setting on the lattice (0: a dry floor); ValueError naming
+    it where it is negative, not finite or not below the column."""
+    depth = float(c["bed_depth"])
+    if not math.isfinite(depth) or depth < 0:
+        raise ValueError(
+            f"bed_depth={c['bed_depth']!r} must be a depth of still water in metres, "
+            "0 (a dry floor) or more."
+        )
+    if depth == 0:
+        return 0.0
+    bed = setting_length(c, "bed_depth")
+    if bed >= column_height:
+        raise ValueError(
+            f"bed_depth={depth:g} m is not below the column ({column_height:g} m, "
+            "column_height): nothing would break; lower bed_depth."
+        )
+    return bed
