@@ -99,6 +99,13 @@ def test_smooth_strip_level_is_differentiable_and_matches_hard_count():
     )
     assert float(hard(case.scene, case.state)) == pytest.approx(0.1)
 
+    # Edges smoothed over a spacing: the weights' integral, not the strip's width,
+    # is the width a level surface fills (before, 2 l0 read 1.31 x the depth).
+    for x in (0.1, 0.1025, 0.105):
+        for width in (0.02, 0.04):
+            level = StripLevel("s", x, width, 0.01, 0.0, softness=1.0)
+            assert float(level(case.scene, case.state)) == pytest.approx(0.1, rel=0.015)
+
     def depth(x):
         state = eqx.tree_at(lambda s: s.position, case.state, x)
         return StripLevel("s", 0.1, 0.04, 0.01, 0.0, softness=1.0)(case.scene, state)

@@ -1,6 +1,7 @@
 """Probes: jittable functions of the state that runs save over time (DESIGN.md §5)."""
 
 import abc
+import math
 
 import equinox as eqx
 import jax
@@ -183,6 +184,9 @@ class StripLevel(AbstractProbe):
     With `softness` > 0 the strip edges are smoothed over `softness` x l0 (each
     particle counts sigmoid((width/2 - |x_j - x|) / (softness l0))), so the probe
     is a differentiable function of the positions: use it as a calibration target.
+    The volume is then divided by the weight's integral, 2 s ln(1 + e^(width/2s))
+    with s = softness l0, not by `width` (which read a level surface 6 % high at a
+    width of 4 l0 and softness 1, 31 % at 2 l0).
     With `anchor`, `x` is in the frame of that (moving) wall particle, initially at
     x = `anchor_x`: a gauge fixed to a shaken tank.
     """
@@ -202,11 +206,14 @@ class StripLevel(AbstractProbe):
         x = _tank_frame(state, self.anchor, self.anchor_x)
         inside = 0.5 * self.width - jnp.abs(x - self.x)
         if self.softness > 0:
-            weight = jax.nn.sigmoid(inside / (self.softness * self.spacing))
+            s = self.softness * self.spacing
+            weight = jax.nn.sigmoid(inside / s)
+            width = 2 * s * math.log1p(math.exp(0.5 * self.width / s))
         else:
             weight = (inside > 0).astype(state.position.dtype)
+            width = self.width
         area = jnp.sum(jnp.where(fluid, weight, 0.0)) * self.spacing**2
-        return area / self.width - self.still_depth
+        return area / width - self.still_depth
 
 
 class PressureLevel(AbstractProbe):
