@@ -56,8 +56,9 @@ def main(argv=None):
         nargs="+",
         default=None,
         help="other forcing frequencies [Hz] (default: Table 4's); the results "
-        "name gains '_fine'",
+        "name gains '_fine' (or `--tag`)",
     )
+    p.add_argument("--tag", default=None, help="suffix of the results name")
     args = p.parse_args(argv)
     jax.config.update("jax_enable_x64", True)
     settings = dict(
@@ -87,7 +88,9 @@ def main(argv=None):
     name = f"tomita_sweep_{args.slope_wall}_{round(1000 * args.spacing)}mm"
     if args.porous_kappa is not None:
         name += f"_kappa{args.porous_kappa:g}"
-    if args.frequencies is not None:
+    if args.tag is not None:
+        name += f"_{args.tag}"
+    elif args.frequencies is not None:
         name += "_fine"
     out.save(HERE / "results" / f"{name}_cpu.h5")  # every series, before any summary
     t = np.asarray(out.saved["time"])[0]
