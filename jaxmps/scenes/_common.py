@@ -223,6 +223,7 @@ RULES = {
     "candidate_capacity": _COUNT,
     "courant": Range(0, 1, open_low=True),
     "domain_margin": _OFFSET,
+    "bed_depth": _OFFSET,
     "escape_limit": Range(0, 2**31 - 1),
     # lengths [m]
     "spacing": _LENGTH,

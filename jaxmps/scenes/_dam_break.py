@@ -1,7 +1,5 @@
 """Collapse of a water column (Martin & Moyce 1952; Koshizuka & Oka 1996)."""
 
-import math
-
 from ._case import Case
 from ._common import (
     check_gauge,
@@ -97,14 +95,9 @@ def dam_break(**overrides) -> Case:
 
 
 def _bed(c: dict, column_height: float) -> float:
-    """The `bed_depth` setting on the lattice (0: a dry floor); ValueError naming
-    it where it is negative, not finite or not below the column."""
+    """The `bed_depth` setting on the lattice (0: a dry floor; `RULES` refuses a
+    negative one); ValueError naming it where it is not below the column."""
     depth = float(c["bed_depth"])
-    if not math.isfinite(depth) or depth < 0:
-        raise ValueError(
-            f"bed_depth={c['bed_depth']!r} must be a depth of still water in metres, "
-            "0 (a dry floor) or more."
-        )
     if depth == 0:
         return 0.0
     bed = setting_length(c, "bed_depth")
