@@ -151,10 +151,12 @@ def make_loss(case, params, probes, sub, field, horizon=None):
 
 def scan(loss, values):
     """(loss, result code) over `values` of the fitted parameter, one vmapped
-    batch."""
+    batch; a failed member's loss is NaN (it reads the states before the
+    failure)."""
     batched = jax.jit(jax.vmap(loss))
     losses, codes = batched(jnp.log(jnp.asarray(values)))
-    return np.asarray(losses), np.asarray(codes)
+    codes = np.asarray(codes)
+    return np.where(codes == 0, np.asarray(losses), np.nan), codes
 
 
 def scan_minimum(values, losses) -> float:
