@@ -185,8 +185,8 @@ class StripLevel(AbstractProbe):
     particle counts sigmoid((width/2 - |x_j - x|) / (softness l0))), so the probe
     is a differentiable function of the positions: use it as a calibration target.
     The volume is then divided by the weight's integral, 2 s ln(1 + e^(width/2s))
-    with s = softness l0, not by `width` (which read a level surface 6 % high at a
-    width of 4 l0 and softness 1, 31 % at 2 l0).
+    = width + 2 s ln(1 + e^(-width/2s)) with s = softness l0: `width` alone would
+    read a level surface 6 % high at a width of 4 l0 and softness 1, 31 % at 2 l0.
     With `anchor`, `x` is in the frame of that (moving) wall particle, initially at
     x = `anchor_x`: a gauge fixed to a shaken tank.
     """
@@ -208,7 +208,7 @@ class StripLevel(AbstractProbe):
         if self.softness > 0:
             s = self.softness * self.spacing
             weight = jax.nn.sigmoid(inside / s)
-            width = 2 * s * math.log1p(math.exp(0.5 * self.width / s))
+            width = self.width + 2 * s * math.log1p(math.exp(-0.5 * self.width / s))
         else:
             weight = (inside > 0).astype(state.position.dtype)
             width = self.width
