@@ -4,7 +4,8 @@ Everyday API, re-exported here:
 
 - building a simulation: `scenes` (built-in cases), `make_scene`, `make_params`,
   `make_state`, `add_rigid_bodies`, `add_elastic_bodies`, `add_grains`,
-  `add_porous_regions` (with `PorousRegion`), `schemes` (discretisation
+  `add_porous_regions` (with `PorousRegion`; `fill_pores` thins the water of
+  regions with a porosity), `schemes` (discretisation
   presets);
 - its three objects: `Scene` (static), `Params` (differentiable), `State` (the
   scan carry), with `Discretisation` and `Kind`;
@@ -51,6 +52,7 @@ from ._driver import run as run
 from ._params import Params as Params
 from ._regions import PorousRegion as PorousRegion
 from ._regions import add_porous_regions as add_porous_regions
+from ._regions import fill_pores as fill_pores
 from ._result import Result as Result
 from ._result import StepInfo as StepInfo
 from ._scene import Scene as Scene

@@ -53,6 +53,12 @@ class Coupling(eqx.Module):
             3.73: the junction of lattice walls and a packed bed), applied to
             the pairs whose partner it is (`visible`); None: 1 everywhere,
             shape (n,).
+        pores: the weight of a fluid particle in a porous region of porosity
+            phi < 1 (`fluid.pore_weight`), which stands sparser there: a pair
+            weighs the geometric mean of its two particles' (symmetric, so that
+            the pressure equation stays symmetric; along a smooth porosity it
+            sums as the partner's weight would, to first order); None: 1
+            everywhere, shape (n,).
         force: a force per unit volume [N/m^3] the body models exert on
             particles from outside the fluid stages (the DEM grains' contacts on
             body particles and their drag on the fluid, from the last step),
@@ -77,6 +83,7 @@ class Coupling(eqx.Module):
     reference_density: Float[Array, " n"] | None = None
     hidden: Bool[Array, " n"] | None = None
     packing: Float[Array, " n"] | None = None
+    pores: Float[Array, " n"] | None = None
     force: Float[Array, "n d"] | None = None
     apart: Int[Array, " n"] | None = None
     between_bodies: bool = eqx.field(static=True, default=False)
@@ -140,7 +147,8 @@ def visible(coupling: Coupling | None, pairs: Pairs, r_e: float) -> Pairs:
     """`pairs` as the fluid stages see them: a pair with a hidden particle
     (`Coupling.hidden`) is no pair (not valid, no weight, no offset, distance
     r_e); the lists keep its index (a body model may read its own particles'
-    rows). A pair's weight is times its partner's `Coupling.packing`."""
+    rows). A pair's weight is times its partner's `Coupling.packing` and the
+    geometric mean of its particles' `Coupling.pores`."""
     if coupling is None:
         return pairs
     if coupling.hidden is not None:
@@ -158,6 +166,10 @@ def visible(coupling: Coupling | None, pairs: Pairs, r_e: float) -> Pairs:
         )
     if coupling.packing is not None:
         weight = pairs.weight * take_rows(coupling.packing, pairs.index)
+        pairs = eqx.tree_at(lambda p: p.weight, pairs, weight)
+    if coupling.pores is not None:
+        root = jnp.sqrt(coupling.pores)
+        weight = pairs.weight * root[:, None] * take_rows(root, pairs.index)
         pairs = eqx.tree_at(lambda p: p.weight, pairs, weight)
     return pairs
 

@@ -6,13 +6,20 @@ from collections.abc import Sequence
 from typing import Any
 
 import equinox as eqx
+import jax.numpy as jnp
 import numpy as np
 
 from ._params import Params, PorousParams
 from ._scene import Scene
 from ._state import State
 from ._types import Kind
-from .fluid import PorousRegions, direction_axis
+from .fluid import (
+    PorousRegions,
+    direction_axis,
+    lowest_porosity,
+    pore_weights,
+    porosity_field,
+)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -28,6 +35,12 @@ class PorousRegion:
             axis: through horizontal plates) or "all" (`porous_direction`).
         drag: quadratic drag coefficient [1/m], the resistance -drag |u| u
             (`porous_drag`; 0: none).
+        porosity: the share of the box open to water, in (0, 1] (`porous_porosity`;
+            1: a resistance only, as seed 001's regions). Below 1 the region holds
+            that share of the water (rock, a rubble mound): its fluid stands
+            sparser and moves with the pore velocity (see `jaxmps.fluid` porous
+            module), and a case's fluid in it must be thinned to it
+            (`fill_pores`; the built-in scenes do).
     """
 
     # Any: numbers of any kind (checked by `add_porous_regions`, which names the
@@ -36,6 +49,7 @@ class PorousRegion:
     kappa: Any
     direction: str = "vertical"
     drag: Any = 0.0
+    porosity: Any = 1.0
 
     @classmethod
     def of(cls, value) -> "PorousRegion":
@@ -48,7 +62,7 @@ class PorousRegion:
             if unknown:
                 raise ValueError(
                     f"porous_regions: unknown field(s) {unknown}; a region has box, "
-                    "kappa, direction, drag."
+                    "kappa, direction, drag, porosity."
                 )
             return cls(**value)
         raise ValueError(
@@ -63,6 +77,7 @@ class PorousRegion:
             kappa=float(self.kappa),
             direction=self.direction,
             drag=float(self.drag),
+            porosity=float(self.porosity),
         )
 
 
@@ -80,10 +95,16 @@ def add_porous_regions(
     move with the walls and damp the velocity relative to them; otherwise they
     are fixed in space.
 
+    A region with a porosity below 1 holds that share of the water: its fluid
+    particles weigh 1/porosity in the fluid's sums, which the pressure then holds
+    at a sparser packing. The case's fluid in it must be thinned to it once
+    (`fill_pores(scene, state)`), or the pressure expels the surplus at the start.
+
     Refused (ValueError naming the setting): an empty list, a box that is not d
     finite lower and upper numbers with lower < upper, a box entirely outside the
     domain or with no fluid particle in it at the start, kappa not positive and
-    finite, drag negative or not finite, an unknown direction.
+    finite, drag negative or not finite, a porosity outside (0, 1], an unknown
+    direction.
 
     Returns:
         The Scene with `porous` and the Params with `porous` (the State is
@@ -120,11 +141,34 @@ def add_porous_regions(
         lowers.append(tuple(float(v) for v in lower))
         uppers.append(tuple(float(v) for v in upper))
         axes.append(direction_axis(region.direction, dim))
+    porosity = tuple(float(r.porosity) for r in regions)
+    porous = any(phi < 1 for phi in porosity)
+    if porous and scene.solver.pressure_is_force:
+        raise ValueError(
+            "porous_porosity below 1 needs the semi-implicit solver "
+            "(solver=semi_implicit): the explicit solver's pressure gradient "
+            "weighs pairs by its own weight, not the number density's, and held "
+            "the sparser water of a region at twice its hydrostatic pressure."
+        )
+    lowest = lowest_porosity(scene.discretisation)
+    if min(porosity) < lowest:
+        raise ValueError(
+            f"porous_porosity={min(porosity):g} is below {lowest:.3f}, the lowest "
+            "this discretisation holds quietly (the water of a region stands "
+            "sparser, and below it its particles keep too few neighbours within "
+            f"r_e = {scene.discretisation.r_e / scene.discretisation.spacing:g} "
+            "l0); raise porous_porosity."
+        )
     component = PorousRegions(
         lower=tuple(lowers),
         upper=tuple(uppers),
         axes=tuple(axes),
         moving=_moves_every_wall(scene, state),
+        porosity=porosity if porous else None,
+        # Choice: two spacings, so that a particle crossing a face at the
+        # Courant number 0.1-0.2 changes its weight over 10-20 steps.
+        transition=TRANSITION * scene.discretisation.spacing,
+        weight_table=pore_weights(scene.discretisation) if porous else None,
     )
     dtype = params.dt.dtype
     coefficients = PorousParams(
@@ -134,6 +178,61 @@ def add_porous_regions(
     scene = eqx.tree_at(lambda s: s.porous, scene, component, is_leaf=_none)
     params = eqx.tree_at(lambda p: p.porous, params, coefficients, is_leaf=_none)
     return scene, params
+
+
+# The width of a porous region's edge, where the porosity passes from 1 to its
+# own, in spacings.
+TRANSITION = 2.0
+# Additive recurrences whose fractional parts fill [0, 1) evenly in any window of
+# lattice sites (Roberts' R_d sequences): a site is kept where its value lies
+# below the porosity.
+_DITHER = {
+    2: (0.7548776662466927, 0.5698402909980532),
+    3: (0.8191725133961645, 0.6710436067037893, 0.5497004779019703),
+}
+
+
+def fill_pores(scene: Scene, state: State) -> State:
+    """`state` with the fluid in porous regions of porosity phi < 1 thinned to phi
+    of its particles (the rest returned to the inactive pool, parked at the
+    domain's origin): a region then starts holding the water its pores hold.
+
+    The particles kept are spread evenly over the lattice (a site stays where the
+    fractional part of its lattice indices times an R_d recurrence lies below
+    phi(x), the porosity at it, edges included), deterministic and the same for
+    every run of a case. Unchanged without such regions. Call it once: a second
+    call thins the kept particles again.
+    """
+    porous = scene.porous
+    if porous is None or not porous.porous:
+        return state
+    position = np.asarray(state.position, float)
+    dim = position.shape[1]
+    spacing = scene.discretisation.spacing
+    origin = np.asarray(scene.grid.origin, float)
+    phi = np.asarray(
+        porosity_field(porous, jnp.zeros(dim), jnp.asarray(position)), float
+    )
+    # Twice the lattice index: whole numbers whether the lattice lies on multiples
+    # of l0 or halfway between them (rounding a half would pair sites up).
+    sites = np.rint(2.0 * (position - origin) / spacing)
+    level = np.mod(sites @ np.asarray(_DITHER[dim]), 1.0)
+    water = np.asarray(state.active) & (np.asarray(state.kind) == int(Kind.FLUID))
+    gone = water & (phi < 1) & (level >= phi)
+    if gone.all() or not np.any(water & ~gone):
+        raise ValueError("fill_pores would leave no fluid; raise porous_porosity.")
+    gone = jnp.asarray(gone)
+    parked = jnp.asarray(origin, state.position.dtype)[None, :]
+    return eqx.tree_at(
+        lambda s: (s.position, s.velocity, s.pressure, s.active),
+        state,
+        (
+            jnp.where(gone[:, None], parked, state.position),
+            jnp.where(gone[:, None], 0.0, state.velocity),
+            jnp.where(gone, 0.0, state.pressure),
+            state.active & ~gone,
+        ),
+    )
 
 
 def _none(x) -> bool:
@@ -173,6 +272,12 @@ def _check_coefficients(region: PorousRegion) -> None:
         )
     if not (_number(drag) and math.isfinite(drag) and drag >= 0):
         raise ValueError(f"porous_drag must be finite and >= 0 (1/m), got {drag!r}.")
+    porosity = region.porosity
+    if not (_number(porosity) and 0 < float(porosity) <= 1):
+        raise ValueError(
+            f"porous_porosity must lie in (0, 1] (the share of the region open to "
+            f"water), got {porosity!r}."
+        )
 
 
 def _number(value) -> bool:

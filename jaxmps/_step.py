@@ -36,7 +36,7 @@ import dataclasses
 import equinox as eqx
 import jax
 import jax.numpy as jnp
-from jaxtyping import Array, Bool, Float
+from jaxtyping import Array, Bool, Float, Int
 
 from . import fluid, neighbours, operators
 from ._checks import check_compatible
@@ -214,17 +214,7 @@ def _porous(scene: Scene, params: Params, state: State) -> Velocities:
     """u^k after the porous regions' resistance over the step, on the particles in
     them at r^k; regions fixed to shaken walls move with them and damp the
     velocity relative to theirs."""
-    dim, dtype = scene.dim, state.position.dtype
-    shift = jnp.zeros((dim,), dtype)
-    frame_velocity = jnp.zeros((dim,), dtype)
-    if scene.porous.moving:
-        motion, dt = scene.motion, params.dt
-        axis = jnp.asarray(motion.axis, dtype)
-        now = motion.law.displacement(params.motion, state.time)
-        later = motion.law.displacement(params.motion, state.time + dt)
-        start = motion.law.displacement(params.motion, jnp.zeros_like(state.time))
-        shift = (now - start) * axis
-        frame_velocity = (later - now) / dt * axis
+    shift, frame_velocity = _region_frame(scene, params, state)
     return fluid.damp(
         scene.porous,
         params.porous.kappa,
@@ -239,11 +229,34 @@ def _porous(scene: Scene, params: Params, state: State) -> Velocities:
     )
 
 
+def _region_frame(
+    scene: Scene, params: Params, state: State
+) -> tuple[Float[Array, " d"], Float[Array, " d"]]:
+    """The porous regions' displacement since the start and their velocity over
+    the step: the walls' where the regions move with them (a shaken tank), zero
+    otherwise."""
+    dim, dtype = scene.dim, state.position.dtype
+    shift = jnp.zeros((dim,), dtype)
+    frame_velocity = jnp.zeros((dim,), dtype)
+    if scene.porous.moving:
+        motion, dt = scene.motion, params.dt
+        axis = jnp.asarray(motion.axis, dtype)
+        now = motion.law.displacement(params.motion, state.time)
+        later = motion.law.displacement(params.motion, state.time + dt)
+        start = motion.law.displacement(params.motion, jnp.zeros_like(state.time))
+        shift = (now - start) * axis
+        frame_velocity = (later - now) / dt * axis
+    return shift, frame_velocity
+
+
 def _coupling(scene: Scene, params: Params, state: State) -> Coupling | None:
-    """What the body models impose on the fluid (None in a scene without bodies).
-    Each model owns its particles; their records are merged slot by slot."""
+    """What the body models and porous regions with a porosity impose on the
+    fluid (None in a scene without either). Each model owns its particles; their
+    records are merged slot by slot."""
     disc = scene.discretisation
     parts = [model.coupling(disc, params, state) for model in scene.body_models]
+    if scene.porous is not None and scene.porous.porous:
+        parts.append(_pores(scene, params, state))
     if not parts:
         return None
     merged = parts[0]
@@ -255,11 +268,29 @@ def _coupling(scene: Scene, params: Params, state: State) -> Coupling | None:
             reference_density=_merged_reference(merged, part),
             hidden=_merged_hidden(merged, part),
             packing=_merged_packing(merged, part),
+            pores=_merged_pores(merged, part),
             force=_merged_force(merged, part),
+            apart=_merged_apart(merged, part),
             between_bodies=merged.between_bodies or part.between_bodies,
             pressed=merged.pressed or part.pressed,
         )
     return merged
+
+
+def _pores(scene: Scene, params: Params, state: State) -> Coupling:
+    """The porous regions' part of the coupling: a fluid particle at x weighs
+    `fluid.pore_weight` of phi(x) in the fluid's sums (`fluid.porosity_field`),
+    owning nothing."""
+    shift, _ = _region_frame(scene, params, state)
+    phi = fluid.porosity_field(scene.porous, shift, state.position)
+    water = state.active & (state.kind == int(Kind.FLUID))
+    n = state.position.shape[0]
+    return Coupling(
+        density=jnp.broadcast_to(params.density, (n,)).astype(phi.dtype),
+        owner=jnp.full((n,), -1, jnp.int32),
+        as_fluid=jnp.zeros((n,), bool),
+        pores=jnp.where(water, fluid.pore_weight(scene.porous, phi), 1.0),
+    )
 
 
 def _merged_hidden(merged: Coupling, part: Coupling) -> Mask | None:
@@ -274,6 +305,18 @@ def _merged_packing(merged: Coupling, part: Coupling) -> Field | None:
     if merged.packing is None or part.packing is None:
         return part.packing if merged.packing is None else merged.packing
     return merged.packing * part.packing
+
+
+def _merged_pores(merged: Coupling, part: Coupling) -> Field | None:
+    """The merged `Coupling.pores` (one model sets them: the porous regions)."""
+    return part.pores if merged.pores is None else merged.pores
+
+
+def _merged_apart(merged: Coupling, part: Coupling) -> Int[Array, " n"] | None:
+    """The merged `Coupling.apart`: a model's mark wherever it sets one."""
+    if merged.apart is None or part.apart is None:
+        return part.apart if merged.apart is None else merged.apart
+    return jnp.where(part.apart != 0, part.apart, merged.apart)
 
 
 def _merged_force(merged: Coupling, part: Coupling) -> Velocities | None:

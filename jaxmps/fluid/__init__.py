@@ -31,6 +31,10 @@ from ._porous import DIRECTIONS as DIRECTIONS
 from ._porous import PorousRegions as PorousRegions
 from ._porous import damp as damp
 from ._porous import direction_axis as direction_axis
+from ._porous import lowest_porosity as lowest_porosity
+from ._porous import pore_weight as pore_weight
+from ._porous import pore_weights as pore_weights
+from ._porous import porosity_field as porosity_field
 from ._porous import resistance_factor as resistance_factor
 from ._precondition import AbstractPreconditioner as AbstractPreconditioner
 from ._precondition import Jacobi as Jacobi

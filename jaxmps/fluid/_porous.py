@@ -25,14 +25,27 @@ u* = u_new + dt (nu lap u + g). Damping u* instead (after gravity) would damp th
 part of it the pressure cancels: still water in a region would carry a
 hydrostatic pressure short by the factor 1/(1 + dt/kappa) (2.4 % at the seed's
 kappa = 0.01 s, dt = 2.5e-4 s); this way it carries none of the resistance.
+
+A region may also have a porosity phi < 1 (rock, a rubble mound: the water fills
+only its pores). Its particles then move with the pore velocity and stand
+sparser, phi particles per lattice site, so that the region holds phi of the
+water a box of open water holds: each fluid particle's pairs weigh 1/phi(x) in
+every sum of the fluid stages (`Coupling.packing`, the mechanism of seed 002's
+packed-bed junction), so that the number density the pressure holds at n0 is
+reached at that sparser packing. phi(x) passes from 1 to the region's value over
+`transition` across each face of the box (a smoothstep, so that a particle
+crossing it changes its neighbours' number density over several steps, not in
+one).
 """
 
 import equinox as eqx
 import jax.numpy as jnp
+import numpy as np
 from jaxtyping import Array, Float
 
 from .._numerics import safe_norm
 from .._types import Kind, Kinds, Mask, Positions, Scalar, Velocities
+from ..operators._weight import lattice_offsets
 
 # Directions by name: an axis, the vertical (the last axis), or all components.
 DIRECTIONS = ("x", "y", "z", "vertical", "all")
@@ -77,6 +90,9 @@ class PorousRegions(eqx.Module):
     upper: tuple[tuple[float, ...], ...]
     axes: tuple[int | None, ...]
     moving: bool = False
+    porosity: tuple[float, ...] | None = None
+    transition: float = 0.0
+    weight_table: tuple[tuple[float, ...], tuple[float, ...]] | None = None
 
     def __check_init__(self):
         if not (len(self.lower) == len(self.upper) == len(self.axes) > 0):
@@ -84,10 +100,109 @@ class PorousRegions(eqx.Module):
                 "PorousRegions needs one lower corner, upper corner and axis per "
                 "region, and at least one region."
             )
+        if self.porosity is not None:
+            if len(self.porosity) != len(self.axes):
+                raise ValueError("PorousRegions needs one porosity per region.")
+            if not all(0 < phi <= 1 for phi in self.porosity):
+                raise ValueError(
+                    f"porous_porosity must lie in (0, 1], got {self.porosity}."
+                )
+            if not self.transition > 0 or self.weight_table is None:
+                raise ValueError(
+                    "PorousRegions needs a positive transition and a weight table "
+                    "with a porosity (`pore_weights`)."
+                )
 
     @property
     def count(self) -> int:
         return len(self.axes)
+
+    @property
+    def porous(self) -> bool:
+        """Whether a region has a porosity below 1 (static: a scene without one
+        compiles no porosity)."""
+        return self.porosity is not None and any(phi < 1 for phi in self.porosity)
+
+
+# The least share of n0 that the lattice stretched to a region's porosity may
+# keep by its own pairs. A region's pressure pulses now and then (one save in 30
+# off by 10-45 % at some porosities, none at others: a cause not found); the
+# pulses grow frequent where a particle's few neighbours carry large weights
+# (validation/results/porous_porosity_cpu.md, still water, 60 saves: 9 saves
+# off at phi = 0.7 in 2-D with dynamic stabilisation, share 0.61; 28 at 0.75 in
+# 3-D, share 0.73; none at 0.85 in 3-D, share 0.83).
+LEAST_SHARE = 0.75
+
+
+def _stretched_density(disc, phi: float) -> float:
+    """The number density of the reference lattice stretched to spacing
+    l0 phi^(-1/d), which holds phi of the water, by its own pairs."""
+    dim, l0, r_e = disc.dim, disc.spacing, disc.r_e
+    stretch = l0 * phi ** (-1.0 / dim)
+    r = np.linalg.norm(lattice_offsets(dim, r_e / stretch), axis=1) * stretch
+    return float(np.sum(np.asarray(disc.weight.value(r, r_e), np.float64)))
+
+
+def lowest_porosity(disc) -> float:
+    """The lowest porosity a region may have: that at which the lattice
+    stretched to hold it keeps `LEAST_SHARE` of n0 by its own pairs (with the
+    standard weight at r_e = 2.1 l0: 0.81 in 2-D, 0.77 in 3-D)."""
+    for phi in np.arange(0.2, 1.0, 0.005):
+        if _stretched_density(disc, phi) >= LEAST_SHARE * disc.n0:
+            return round(float(phi), 3)
+    return 1.0
+
+
+def pore_weights(
+    disc, samples: int = 64
+) -> tuple[tuple[float, ...], tuple[float, ...]]:
+    """The weight a fluid particle's pairs carry at porosity phi, tabulated on
+    phi from `lowest_porosity` to 1: n0 / n(phi), n(phi) the number density of
+    the reference lattice stretched to spacing l0 phi^(-1/d), which holds phi of
+    the water.
+
+    # Choice: not 1/phi. The weight r_e/r - 1 makes the number density of a
+    # stretched lattice fall faster than its particle count (at phi = 0.8 in 2-D,
+    # n/n0 = 0.74, not 0.8): weighted 1/phi, the water settles denser than phi."""
+    phi = np.linspace(lowest_porosity(disc), 1.0, samples)
+    weights = [disc.n0 / _stretched_density(disc, value) for value in phi]
+    return tuple(float(v) for v in phi), tuple(weights)
+
+
+def _ramp(s):
+    """0 below 0, 1 above 1, the smoothstep 3 s^2 - 2 s^3 between."""
+    s = jnp.clip(s, 0.0, 1.0)
+    return s * s * (3.0 - 2.0 * s)
+
+
+def pore_weight(regions: PorousRegions, phi: Float[Array, " n"]) -> Float[Array, " n"]:
+    """The weight of a fluid particle's pairs at porosity `phi` (`pore_weights`,
+    interpolated; 1 at phi = 1)."""
+    table_phi, table_weight = regions.weight_table
+    return jnp.interp(
+        phi, jnp.asarray(table_phi, phi.dtype), jnp.asarray(table_weight, phi.dtype)
+    )
+
+
+def porosity_field(
+    regions: PorousRegions, shift: Float[Array, " d"], position: Positions
+) -> Float[Array, " n"]:
+    """phi(x) at each position: 1 outside the regions, the region's porosity
+    inside, a smoothstep over `regions.transition` centred on each face of a box
+    moved by `shift`; where regions overlap their fractions multiply."""
+    phi = jnp.ones(position.shape[:1], position.dtype)
+    if not regions.porous:
+        return phi
+    width = regions.transition
+    for i in range(regions.count):
+        lower = jnp.asarray(regions.lower[i], position.dtype) + shift
+        upper = jnp.asarray(regions.upper[i], position.dtype) + shift
+        into = _ramp((position - lower[None, :] + 0.5 * width) / width) * _ramp(
+            (upper[None, :] - position + 0.5 * width) / width
+        )
+        share = jnp.prod(into, axis=-1)
+        phi = phi * (1.0 - (1.0 - regions.porosity[i]) * share)
+    return phi
 
 
 def resistance_factor(

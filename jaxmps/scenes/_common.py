@@ -61,6 +61,7 @@ COMMON = {
     "porous_box": None,
     "porous_direction": "vertical",
     "porous_drag": 0.0,
+    "porous_porosity": 1.0,
     "porous_regions": None,
 }
 
@@ -333,6 +334,7 @@ RULES = {
     "plate_length": _LENGTH,
     "porous_kappa": _POSITIVE,
     "porous_drag": _NON_NEGATIVE,
+    "porous_porosity": Range(0, 1, open_low=True),
     # grains
     "grain_diameter": _LENGTH,
     "grain_density": _POSITIVE,

@@ -2,27 +2,30 @@
 
 import functools
 
-from .._regions import PorousRegion, add_porous_regions
+from .._regions import PorousRegion, add_porous_regions, fill_pores
 from ._case import Case
 from ._common import _check_range
 
 # The settings, with their defaults (also listed in `_common.COMMON`): one region
 # from `porous_kappa` (s) and `porous_box` (x0,y0[,z0],x1,y1[,z1]), its
-# `porous_direction` and quadratic `porous_drag` (1/m); any number of regions
+# `porous_direction`, quadratic `porous_drag` (1/m) and `porous_porosity` (the
+# share open to water); any number of regions
 # from `porous_regions` (a list of `PorousRegion` or of dicts of its fields).
 SETTINGS = {
     "porous_kappa": None,
     "porous_box": None,
     "porous_direction": "vertical",
     "porous_drag": 0.0,
+    "porous_porosity": 1.0,
     "porous_regions": None,
 }
 
 
 def accepts_porous(scene_function):
     """`scene_function(**overrides) -> Case` taking the porous settings as well:
-    the case is built without them and the regions added
-    (`jaxmps.add_porous_regions`); the case's config records them, so that a run
+    the case is built without them, the regions added
+    (`jaxmps.add_porous_regions`) and the fluid in regions with a porosity thinned
+    to it (`jaxmps.fill_pores`); the case's config records them, so that a run
     file rebuilds the same scene."""
 
     @functools.wraps(scene_function)
@@ -42,14 +45,13 @@ def accepts_porous(scene_function):
                 config,
             )
         scene, params = add_porous_regions(case.scene, case.params, case.state, regions)
+        state = fill_pores(scene, case.state)
         config["porous_regions"] = (
             None
             if settings.get("porous_regions") is None
             else [PorousRegion.of(r).as_dict() for r in settings["porous_regions"]]
         )
-        return Case(
-            case.name, scene, params, case.state, case.probes, case.t_end, config
-        )
+        return Case(case.name, scene, params, state, case.probes, case.t_end, config)
 
     return build
 
@@ -66,7 +68,9 @@ def _regions(name: str, c: dict, dim: int) -> list[PorousRegion]:
     kappa, box = c["porous_kappa"], c["porous_box"]
     if kappa is None and box is None:
         changed = [
-            k for k in ("porous_direction", "porous_drag") if c[k] != SETTINGS[k]
+            k
+            for k in ("porous_direction", "porous_drag", "porous_porosity")
+            if c[k] != SETTINGS[k]
         ]
         if changed:
             raise ValueError(
@@ -85,13 +89,14 @@ def _regions(name: str, c: dict, dim: int) -> list[PorousRegion]:
             f"porous_direction of scene '{name}' must be a word (x, y, z, "
             f"vertical, all), got {c['porous_direction']!r}."
         )
-    for key in ("porous_kappa", "porous_drag"):
+    for key in ("porous_kappa", "porous_drag", "porous_porosity"):
         _check_range(name, key, c[key])
     region = PorousRegion(
         box=_corners(box, dim),
         kappa=kappa,
         direction=c["porous_direction"],
         drag=c["porous_drag"],
+        porosity=c["porous_porosity"],
     )
     return [region, *regions]
 

@@ -15,6 +15,7 @@ from .._state import State
 from .._types import Kind
 from ..bodies import corrective_matrices, elastic_stress
 from ..bodies.rotation import matrix as rotation_matrix
+from ..fluid import porosity_field
 
 
 class AbstractProbe(eqx.Module):
@@ -188,7 +189,10 @@ class StripLevel(AbstractProbe):
     = width + 2 s ln(1 + e^(-width/2s)) with s = softness l0: `width` alone would
     read a level surface 6 % high at a width of 4 l0 and softness 1, 31 % at 2 l0.
     With `anchor`, `x` is in the frame of that (moving) wall particle, initially at
-    x = `anchor_x`: a gauge fixed to a shaken tank.
+    x = `anchor_x`: a gauge fixed to a shaken tank. In porous regions with a
+    porosity phi < 1 a particle counts 1/phi(x) of its volume (`fluid.porosity_field`,
+    in the tank's frame): the probe reads the free surface's height, as a gauge
+    over rock does, not the water's volume.
     """
 
     name: str
@@ -201,9 +205,14 @@ class StripLevel(AbstractProbe):
     anchor_x: float = 0.0
 
     def __call__(self, scene: Scene, state: State):
-        del scene
         fluid = jnp.logical_and(state.active, state.kind == int(Kind.FLUID))
         x = _tank_frame(state, self.anchor, self.anchor_x)
+        if scene.porous is not None and scene.porous.porous:
+            frame = state.position.at[:, 0].set(x)
+            shift = jnp.zeros(state.position.shape[1:], state.position.dtype)
+            volume = 1.0 / porosity_field(scene.porous, shift, frame)
+        else:
+            volume = 1.0
         inside = 0.5 * self.width - jnp.abs(x - self.x)
         if self.softness > 0:
             s = self.softness * self.spacing
@@ -212,7 +221,7 @@ class StripLevel(AbstractProbe):
         else:
             weight = (inside > 0).astype(state.position.dtype)
             width = self.width
-        area = jnp.sum(jnp.where(fluid, weight, 0.0)) * self.spacing**2
+        area = jnp.sum(jnp.where(fluid, weight * volume, 0.0)) * self.spacing**2
         return area / width - self.still_depth
 
 
