@@ -19,6 +19,7 @@ from .fluid import (
     lowest_porosity,
     pore_weights,
     porosity_field,
+    retire,
 )
 
 
@@ -219,20 +220,7 @@ def fill_pores(scene: Scene, state: State) -> State:
     level = np.mod(sites @ np.asarray(_DITHER[dim]), 1.0)
     water = np.asarray(state.active) & (np.asarray(state.kind) == int(Kind.FLUID))
     gone = water & (phi < 1) & (level >= phi)
-    if gone.all() or not np.any(water & ~gone):
-        raise ValueError("fill_pores would leave no fluid; raise porous_porosity.")
-    gone = jnp.asarray(gone)
-    parked = jnp.asarray(origin, state.position.dtype)[None, :]
-    return eqx.tree_at(
-        lambda s: (s.position, s.velocity, s.pressure, s.active),
-        state,
-        (
-            jnp.where(gone[:, None], parked, state.position),
-            jnp.where(gone[:, None], 0.0, state.velocity),
-            jnp.where(gone, 0.0, state.pressure),
-            state.active & ~gone,
-        ),
-    )
+    return retire(jnp.asarray(gone), scene.grid, state)
 
 
 def _none(x) -> bool:

@@ -27,6 +27,20 @@ def _region(phi, **kwargs):
     )
 
 
+def _porous_bed(phi, spacing, **settings):
+    """A 0.3 m x 0.2 m column at the left of a 0.6 m tank whose right half is a
+    porous region of porosity `phi` over a wet bed (`bed_depth` in `settings`)."""
+    return scenes.dam_break(
+        column_width=0.3,
+        column_height=0.2,
+        tank_length=0.6,
+        tank_height=0.35,
+        spacing=spacing,
+        **settings,
+        **_region(phi, box="0.3,-1,2,2"),
+    )
+
+
 def _stretched_density(disc, phi, weight):
     """Brute force: the number density of the centre of a square/cubic lattice of
     spacing l0 phi^(-1/d), each neighbour weighing `weight`."""
@@ -179,15 +193,7 @@ def test_water_filling_a_porous_bed_rises_to_the_level_its_pores_give():
     0.35 l0 above the level without porosity (measured at phi = 0.7-0.9: -0.07
     to -0.29 l0 from it)."""
     l0, phi = 0.01, 0.85
-    case = scenes.dam_break(
-        column_width=0.3,
-        column_height=0.2,
-        tank_length=0.6,
-        tank_height=0.35,
-        bed_depth=0.03,
-        spacing=l0,
-        **_region(phi, box="0.3,-1,2,2"),
-    )
+    case = _porous_bed(phi, l0, bed_depth=0.03)
     traj = jaxmps.simulate(
         case.scene, case.params, case.state, times=np.linspace(2.5, 3.0, 6)
     )
@@ -260,16 +266,7 @@ def test_kappa_gradient_through_a_porous_bed_matches_finite_differences():
     (measured 7e-5 relative at h = 1e-4)."""
     import equinox as eqx
 
-    case = scenes.dam_break(
-        column_width=0.3,
-        column_height=0.2,
-        tank_length=0.6,
-        tank_height=0.35,
-        bed_depth=0.04,
-        spacing=0.02,
-        dt=2e-3,
-        **_region(0.85, box="0.3,-1,2,2"),
-    )
+    case = _porous_bed(0.85, 0.02, bed_depth=0.04, dt=2e-3)
     observe = scenes.observe_probes(case.probes)
 
     def loss(log_kappa):

@@ -27,6 +27,7 @@ from ._open import Outflow as Outflow
 from ._open import apply_inflow as apply_inflow
 from ._open import apply_outflow as apply_outflow
 from ._open import inflow_boundary as inflow_boundary
+from ._open import retire as retire
 from ._porous import DIRECTIONS as DIRECTIONS
 from ._porous import PorousRegions as PorousRegions
 from ._porous import damp as damp

@@ -281,7 +281,7 @@ def _withdraw(inflow: Inflow, grid: Grid, l0: float, withdraw, state: State):
         & inside
         & (ahead < 0.5 * l0)
     )
-    state = _retire(gone, grid, state)
+    state = retire(gone, grid, state)
     boundary = jnp.asarray(inflow.boundary)
     position = state.position.at[boundary, axis].add(
         jnp.where(withdraw, sign * l0, 0.0)
@@ -296,10 +296,10 @@ def apply_outflow(outflow: Outflow, grid: Grid, state: State) -> State:
     parked and inactive."""
     past = outflow.direction * (state.position[:, outflow.axis] - outflow.position)
     carried = (state.kind == int(Kind.FLUID)) | (state.kind == int(Kind.SEDIMENT))
-    return _retire(state.active & carried & (past > 0), grid, state)
+    return retire(state.active & carried & (past > 0), grid, state)
 
 
-def _retire(gone, grid: Grid, state: State) -> State:
+def retire(gone, grid: Grid, state: State) -> State:
     """Return the `gone` particles to the pool, parked at the domain origin."""
     origin = jnp.asarray(grid.origin, state.position.dtype)[None, :]
     return eqx.tree_at(
