@@ -108,7 +108,14 @@ def _step(
     if scene.surface is not None:
         with jax.named_scope("surface"):
             surface = fluid.detect_surface(
-                scene.surface, params.beta, disc.n0, n_star, kind, active, pairs
+                scene.surface,
+                params.beta,
+                disc.n0,
+                n_star,
+                kind,
+                active,
+                pairs,
+                None if coupling is None else coupling.pores,
             )
     with jax.named_scope("pressure"):
         inputs = _pressure_inputs(

@@ -125,12 +125,11 @@ class PorousRegions(eqx.Module):
 
 
 # The least share of n0 that the lattice stretched to a region's porosity may
-# keep by its own pairs. A region's pressure pulses now and then (one save in 30
-# off by 10-45 % at some porosities, none at others: a cause not found); the
-# pulses grow frequent where a particle's few neighbours carry large weights
-# (validation/results/porous_porosity_cpu.md, still water, 60 saves: 9 saves
-# off at phi = 0.7 in 2-D with dynamic stabilisation, share 0.61; 28 at 0.75 in
-# 3-D, share 0.73; none at 0.85 in 3-D, share 0.83).
+# keep by its own pairs. Below it a region's pressure is loud: in 3-D at 0.75
+# (share 0.73) 28 saves in 60 were 10-28 % off, none at 0.85 (share 0.83); in
+# 2-D, with the surface filter counting pore weights, single pulses of 10-45 %
+# in one or two saves of 60 at 0.8 and 0.7 (shares 0.73 and 0.61), none above
+# (validation/results/porous_porosity_cpu.md, still water).
 LEAST_SHARE = 0.75
 
 

@@ -29,8 +29,16 @@ def detect_surface(
     kind: Kinds,
     active: Bool[Array, " n"],
     pairs: Pairs,
+    counts_as: Float[Array, " n"] | None = None,
 ) -> Bool[Array, " n"]:
     """Surface flags of pressure-carrying particles (fluid, walls, bodies).
+
+    `counts_as`: how many lattice neighbours each of a particle's neighbours
+    stands for in the isolated-surface filter's count (None: 1): in a porous
+    region the water stands sparser (`Coupling.pores`), and counted one by one
+    an interior particle there has fewer than `min_neighbours` (8 at porosity
+    0.8 in 2-D), so a dip of its number density below beta n0 went unfiltered:
+    it took P = 0 and the pressure around it fell for a step.
 
     Discrete decision: carries no gradient with respect to beta or positions.
     """
@@ -38,6 +46,8 @@ def detect_surface(
     flagged = jnp.logical_and(candidate, number_density < beta * n0)
     flagged_nbrs = jnp.sum(pairs.valid & take_rows(flagged, pairs.index), axis=1)
     all_nbrs = jnp.sum(pairs.valid, axis=1)
+    if counts_as is not None:
+        all_nbrs = all_nbrs * counts_as
     isolated = (flagged_nbrs <= model.max_surface_neighbours) & (
         all_nbrs >= model.min_neighbours
     )
