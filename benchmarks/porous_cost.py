@@ -2,9 +2,12 @@
 
 The same case is run with and without its regions: the sloped Tomita tank with
 the seed's region of three porous plates (one box), a rectangular sloshing tank
-with one, four and sixteen regions, and a 3-D hydrostatic tank with one. Compile
-time and run time are reported separately; run times are the best of three
-calls after an untimed one (`_common.time_compiled`), fixed steps.
+with one, four and sixteen regions, and a 3-D hydrostatic tank with one. Then the
+cost of a porosity: hydrostatic tanks (2-D at 1 cm, 3-D at 2 cm) with a region
+of porosity 0.9 / 0.85 against the same region without one (its pairs weighed by
+the pore weights, the scene on the coupled path). Compile time and run time are
+reported separately; run times are the best of three calls after an untimed one
+(`_common.time_compiled`), fixed steps.
 
 Run: python benchmarks/porous_cost.py  (writes results/porous_cost_cpu.{json,md})
 """
@@ -32,31 +35,49 @@ def strips(count):
 
 def main():
     seed_box = dict(porous_kappa=0.01, porous_box="-1,0.38,0.3,0.46")
+    box_2d = dict(porous_kappa=0.05, porous_box="0.1,-1,0.3,1", porous_direction="all")
+    box_3d = dict(porous_kappa=0.05, porous_box="-1,-1,0.1,2,2,0.3")
+    # name: (scene, its settings, the baseline's extra settings, the measured extra)
     cases = {
         "sloped tank, seed's region": (
-            dict(slope=1.5, spacing=0.01),
-            seed_box,
             jaxmps.scenes.sloshing_tank,
+            dict(slope=1.5, spacing=0.01),
+            {},
+            seed_box,
         ),
         **{
             f"sloshing tank, {k} region(s)": (
-                dict(spacing=0.01),
-                dict(porous_regions=strips(k)),
                 jaxmps.scenes.sloshing_tank,
+                dict(spacing=0.01),
+                {},
+                dict(porous_regions=strips(k)),
             )
             for k in (1, 4, 16)
         },
         "3-D hydrostatic, 1 region": (
-            dict(dim=3, spacing=0.02),
-            dict(porous_kappa=0.05, porous_box="-1,-1,0.1,2,2,0.3"),
             jaxmps.scenes.hydrostatic,
+            dict(dim=3, spacing=0.02),
+            {},
+            box_3d,
+        ),
+        "2-D hydrostatic, porosity 0.9 vs its region without": (
+            jaxmps.scenes.hydrostatic,
+            dict(width=0.4, depth=0.2, spacing=0.01),
+            box_2d,
+            dict(box_2d, porous_porosity=0.9),
+        ),
+        "3-D hydrostatic, porosity 0.85 vs its region without": (
+            jaxmps.scenes.hydrostatic,
+            dict(dim=3, spacing=0.02),
+            box_3d,
+            dict(box_3d, porous_porosity=0.85),
         ),
     }
     n_steps = 200
     rows = []
-    for name, (settings, regions, build) in cases.items():
-        plain = fixed_steps(build(**settings))
-        damped = fixed_steps(build(**settings, **regions))
+    for name, (build, settings, baseline, extra) in cases.items():
+        plain = fixed_steps(build(**settings, **baseline))
+        damped = fixed_steps(build(**settings, **extra))
         n = int(plain.state.active.sum())
         c_with, r_with = compile_and_run(
             damped.scene, damped.params, damped.state, n_steps
@@ -91,7 +112,7 @@ def main():
         "warm-up call.",
         "",
         "| case | particles | regions | compile with / without [s] | "
-        "run with / without [s] | region share of step | particle-steps/s |",
+        "run with / without [s] | share of step | particle-steps/s |",
         "|---|---|---|---|---|---|---|",
     ]
     for r in rows:
@@ -103,8 +124,11 @@ def main():
         )
     lines += [
         "",
-        "A scene without regions compiles no region code (no `porous` stage in its "
-        "program; tests/test_porous.py). Shares within a few per cent of zero are "
+        "With / without: the regions, or for the porosity rows the porosity "
+        "(the baseline has the same region without one). A scene without regions "
+        "compiles no region code (no `porous` stage in its program; "
+        "tests/test_porous.py), one without a porosity no pore weights "
+        "(tests/test_porosity.py). Shares within a few per cent of zero are "
         "load noise: compare the rows' spread.",
     ]
     (HERE / "results" / "porous_cost_cpu.md").write_text("\n".join(lines) + "\n")
