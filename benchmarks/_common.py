@@ -192,6 +192,18 @@ def time_compiled(lower, *args, repeats: int = 3, max_timed_s=math.inf, **kwargs
     )
 
 
+@eqx.filter_jit
+def iteration_stats(scene, params, state, n_steps: int):
+    """Pressure-solve iterations/convergence of each of `n_steps` steps."""
+
+    def body(s, _):
+        s, info = jaxmps.step(scene, params, s)
+        return s, (info.pressure_iterations, info.pressure_converged)
+
+    final, (iters, converged) = jax.lax.scan(body, state, None, length=n_steps)
+    return final.result, iters, converged
+
+
 def compile_and_run(scene, params, state, n_steps: int) -> tuple[float, float]:
     """(trace + lower + compile [s], best of 3 runs [s]) of `n_steps` steps saving
     the last frame (`time_compiled` of `jaxmps.lower_simulate`)."""

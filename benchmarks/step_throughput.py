@@ -41,7 +41,7 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
-from _common import fixed_steps, machine_info, time_compiled
+from _common import fixed_steps, iteration_stats, machine_info, time_compiled
 from _common import loadavg as _loadavg
 
 import jaxmps
@@ -117,18 +117,6 @@ def _memory_record(baseline_rss: float) -> dict:
 
 
 # ----------------------------------------------------------------------------- workers
-
-
-@eqx.filter_jit
-def iteration_stats(scene, params, state, n_steps: int):
-    """Pressure-solve iterations/convergence of each of `n_steps` steps."""
-
-    def body(s, _):
-        s, info = jaxmps.step(scene, params, s)
-        return s, (info.pressure_iterations, info.pressure_converged)
-
-    final, (iters, converged) = jax.lax.scan(body, state, None, length=n_steps)
-    return final.result, iters, converged
 
 
 def throughput_case(spacing: float, n_steps: int, repeats: int) -> dict:
