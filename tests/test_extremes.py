@@ -236,9 +236,9 @@ def test_truncated_run_file(tmp_path, capsys):
 # ------------------------------------------------------------ bad input
 
 
-def _sweep_unknown():
+def _sweep_unknown(name="viscosty"):
     case = jaxmps.scenes.hydrostatic(spacing=0.05)
-    jaxmps.sweep(case, {"viscosty": np.array([1e-6, 2e-6])}, 2, 2)
+    jaxmps.sweep(case, {name: np.array([1e-6, 2e-6])}, 2, 2)
 
 
 def _batched_params_without_vmap():
@@ -348,7 +348,14 @@ BAD_INPUTS = {
         lambda: jaxmps.scenes.standing_wave(amplitude=0.6),
         "amplitude=0.6 must lie in",
     ),
-    "sweep over a misspelt field": (_sweep_unknown, "Unknown Params field 'viscosty'"),
+    "sweep over a misspelt field": (
+        _sweep_unknown,
+        "Unknown Params field 'viscosty'.*Did you mean 'viscosity'",
+    ),
+    "sweep over a scene setting": (
+        lambda: _sweep_unknown("porous_porosity"),
+        "Unknown Params field 'porous_porosity'.*scene setting.*one case per value",
+    ),
     "batched Params passed without vmap": (
         _batched_params_without_vmap,
         r"Params.viscosity has shape \(3,\).*jaxmps.sweep",

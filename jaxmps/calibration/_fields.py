@@ -1,5 +1,7 @@
 """Addressing Params fields by dotted name ("viscosity", "inflow.velocity")."""
 
+import difflib
+
 import equinox as eqx
 
 
@@ -38,7 +40,14 @@ def field_names(params, prefix: str = "") -> list[str]:
 
 
 def _unknown(params, name: str) -> str:
-    return (
-        f"Unknown Params field {name!r}. Valid fields: "
-        f"{', '.join(field_names(params))}."
+    names = field_names(params)
+    close = difflib.get_close_matches(name, names, n=1, cutoff=0.8)
+    hint = (
+        f" Did you mean {close[0]!r}?"
+        if close
+        else " A setting that decides the particles (the spacing, the geometry, a "
+        "porous region's porosity, which thins its water) is a scene setting, "
+        "not a Params field: build one case per value "
+        "(jaxmps.scenes.<scene>(setting=value)) and run them apart."
     )
+    return f"Unknown Params field {name!r}. Valid fields: {', '.join(names)}.{hint}"
