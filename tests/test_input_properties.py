@@ -83,6 +83,9 @@ def small_limit():
 @given(overrides=_settings(4))
 # A subnormal spacing once overflowed the particle count (OverflowError).
 @example(overrides={"spacing": 2.2250738585e-313})
+# Half the largest double: the velocity scale sqrt(2 g H) overflowed and the
+# time step came out 0 s, refused as `Params.dt` (not named by the user).
+@example(overrides={"gravity": 8.98846567431158e307})
 def test_scene_settings_build_or_are_refused_by_name(small_limit, overrides):
     try:
         case = jaxmps.scenes.hydrostatic(**overrides)

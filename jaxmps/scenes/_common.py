@@ -503,6 +503,13 @@ def _largest_step(config: dict, velocity_scale: float) -> float:
     dt = calm_step(config, velocity_scale)
     if config["solver"] == "explicit":
         dt = min(dt, 0.4 * config["spacing"] / config["sound_speed"])
+    if not 0 < dt < math.inf:  # a velocity scale that overflowed
+        raise ValueError(
+            f"gravity={config['gravity']!r} m/s^2 with spacing="
+            f"{config['spacing']!r} m gives a largest time step of {dt!r} s "
+            f"(velocity scale {velocity_scale!r} m/s); give a physical `gravity`, "
+            "or `dt_max` (seconds)."
+        )
     return float(dt)
 
 
