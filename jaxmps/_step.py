@@ -46,7 +46,7 @@ from ._params import Params
 from ._result import Result, StepInfo, update_result
 from ._scene import Scene
 from ._state import State
-from ._types import Field, Kind, Mask, Positions, Scalar, Velocities
+from ._types import Field, Kind, Kinds, Mask, Positions, Scalar, Velocities
 
 
 def _step(
@@ -104,19 +104,8 @@ def _step(
     # own body's pairs (`Coupling.source_view`): the surface and the pressure's
     # source see the body rigid within itself.
     n_star = source_view(coupling, pairs)[1]
-    surface = jnp.zeros_like(active)
-    if scene.surface is not None:
-        with jax.named_scope("surface"):
-            surface = fluid.detect_surface(
-                scene.surface,
-                params.beta,
-                disc.n0,
-                n_star,
-                kind,
-                active,
-                pairs,
-                None if coupling is None else coupling.pores,
-            )
+    with jax.named_scope("surface"):
+        surface = _surface(scene, params, n_star, kind, active, pairs, coupling)
     with jax.named_scope("pressure"):
         inputs = _pressure_inputs(
             state,
@@ -254,6 +243,32 @@ def _region_frame(
         shift = (now - start) * axis
         frame_velocity = (later - now) / dt * axis
     return shift, frame_velocity
+
+
+def _surface(
+    scene: Scene,
+    params: Params,
+    n_star: Field,
+    kind: Kinds,
+    active: Mask,
+    pairs: operators.Pairs,
+    coupling: Coupling | None,
+) -> Mask:
+    """The free-surface flags at r* (none without a `Scene.surface` model); a
+    porous region's neighbours count by their pore weight."""
+    if scene.surface is None:
+        return jnp.zeros_like(active)
+    pores = None if coupling is None else coupling.pores
+    return fluid.detect_surface(
+        scene.surface,
+        params.beta,
+        scene.discretisation.n0,
+        n_star,
+        kind,
+        active,
+        pairs,
+        pores,
+    )
 
 
 def _coupling(scene: Scene, params: Params, state: State) -> Coupling | None:
