@@ -127,17 +127,21 @@ def table(rows: list[dict]) -> str:
     lines = [
         "| code | l0 [m] | block | tan | mu | travel / theory at 0.25 s | at 0.5 s |"
         " hop [m/s] | rock [rad/s] | tilt at release [deg] | base moved [mm] |"
-        " wall [s] |",
-        "|---|---|---|---|---|---|---|---|---|---|---|---|",
+        " wall [s] | host |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for r in rows:
         lines.append(
             f"| {r['label']} | {r['spacing']} | {r['shape']} | {r['tan']} | {r['mu']} "
             f"| {r['ratio_0.25']:.3f} | {r['ratio_0.5']:.3f} | {r['hop']:.3f} "
             f"| {r['rock']:.3f} | {_tilt(r)} | {r['base_moved_mm']:.2f} "
-            f"| {r['wall_s']:.0f} |"
+            f"| {r['wall_s']:.0f} | {r.get('host', _OLD_HOST)} |"
         )
     return "\n".join(lines)
+
+
+# Rows written before each row named its host were all run on this one.
+_OLD_HOST = "Intel(R) Xeon(R) Processor, family 6 model 167"
 
 
 def _tilt_deg(orientation: np.ndarray) -> float:
@@ -173,6 +177,8 @@ def main():
         old = json.loads(path.with_suffix(".json").read_text())["rows"]
     rows = {_key(r): r for r in old}
     shapes = [None] if args.three_d else args.shapes
+    info = machine_info()
+    host = info["cpu_model"].replace(", avx512f", "")
     for spacing, shape, tan, mu in itertools.product(
         args.spacings, shapes, args.tans, args.mus
     ):
@@ -180,16 +186,17 @@ def main():
             row = {"label": args.label, **measure_3d(spacing, tan, mu)}
         else:
             row = {"label": args.label, **measure(spacing, shape, tan, mu)}
+        row["host"] = host
         print(json.dumps(row), flush=True)
         rows[_key(row)] = row
         every = sorted(rows.values(), key=lambda r: _key(r)[1:] + _key(r)[:1])
-        info = machine_info()
         path.with_suffix(".json").write_text(
             json.dumps({"machine": info, "rows": every}, indent=1)
         )
         path.with_suffix(".md").write_text(
             "# A block sliding down another (dry, `block_stack`)\n\n"
-            f"Machine: {info['cpu_model']}, {info['cpu_count']} cores; float64; "
+            f"Machine of the last run: {info['cpu_model']}, {info['cpu_count']} "
+            "cores (each row names its host); float64; "
             "`validation/block_slide.py`. Travel of the top block along the slope "
             "over g (sin - mu cos) t^2 / 2; hop: its largest speed normal to the "
             "base; rock: its largest spin. Codes: `central` pushed each pair of "
