@@ -78,6 +78,9 @@ class Trajectory(eqx.Module):
         state: the final state.
         saved: observations stacked along a leading time axis (one per save).
         result: the first failure of the rollout, or `Result.successful`.
+            A rollout stops at its first failure (with either time stepping):
+            the final state and every later save hold the state of the step that
+            failed, and `steps.accepted` is 0 for the saves after it.
         steps: the steps behind each save (`StepHistory`).
     """
 
@@ -529,8 +532,11 @@ def _fixed_block(
     """A save of `save_every` steps of `Params.dt`, as a `lax.scan`."""
 
     def one_step(carry: State, _):
-        carry, _ = _step(scene, params, carry, batch_axis)
-        return carry, None
+        # A failed state is kept as it is, as the adaptive loop stops at it: the
+        # steps after a failure (a particle gone, a step beyond its limit) would
+        # save frames of a run that is no longer the model's.
+        stepped, _ = _step(scene, params, carry, batch_axis)
+        return _where(carry.result == Result.successful, stepped, carry), None
 
     if checkpoint == "steps":
         one_step = jax.checkpoint(one_step)

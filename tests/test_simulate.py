@@ -10,6 +10,7 @@ import pytest
 from helpers import small_tank
 
 import jaxmps
+from jaxmps._result import result_code
 
 
 def test_vmap_over_params_equals_loop():
@@ -63,6 +64,44 @@ def test_throw_raises_with_message_and_false_returns_result():
         jaxmps.simulate(scene, params, state, 2, 2, throw=True)
     tr = jaxmps.simulate(scene, params, state, 2, 2, throw=False)
     assert tr.result == jaxmps.Result.neighbour_overflow
+
+
+def test_a_fixed_step_rollout_stops_at_its_first_failure():
+    # dt 20 ms at l0 = 2 cm: the falling column passes the Courant limit in the
+    # second step. The steps after it would have run on (the column falling
+    # through the floor); the rollout keeps the failed state instead, in every
+    # later save, and a batch member that fails does not stop the others.
+    case = jaxmps.scenes.dam_break(spacing=0.02, dt=0.02)
+    scene, params, state = case.scene, case.params, case.state
+    tr = jaxmps.simulate(scene, params, state, 12, 2, throw=False)
+    assert tr.result == jaxmps.Result.step_too_large
+    failed_at = int(tr.state.step)
+    assert 0 < failed_at < 12
+    np.testing.assert_allclose(float(tr.state.time), failed_at * 0.02, rtol=1e-12)
+    assert int(np.sum(tr.steps.accepted)) == failed_at
+    last = tr.saved.position[-1]
+    np.testing.assert_array_equal(last, tr.state.position)
+    after = (failed_at + 1) // 2  # the first save taken entirely after it
+    np.testing.assert_array_equal(
+        tr.saved.position[after:],
+        last[None].repeat(len(tr.saved.position) - after, axis=0),
+    )
+    assert int(tr.state.active.sum()) == int(state.active.sum())
+
+    dts = jnp.asarray([0.02, 0.002], params.dt.dtype)
+    batch = jax.vmap(
+        lambda dt: jaxmps.simulate(
+            scene, eqx.tree_at(lambda p: p.dt, params, dt), state, 12, 2, throw=False
+        )
+    )(dts)
+    codes = np.asarray(result_code(batch.result))
+    assert codes[0] == result_code(jaxmps.Result.step_too_large)
+    assert codes[1] == result_code(jaxmps.Result.successful)
+    np.testing.assert_allclose(
+        batch.state.position[0], tr.state.position, rtol=0, atol=1e-12
+    )
+    assert int(batch.state.step[0]) == failed_at
+    assert int(batch.state.step[1]) == 12
 
 
 @pytest.mark.parametrize("solver", ["semi_implicit", "explicit"])
