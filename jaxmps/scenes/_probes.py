@@ -69,8 +69,11 @@ class FluidCount(AbstractProbe):
 
 
 class WaterLevel(AbstractProbe):
-    """Height of the highest fluid particle within l0/2 of `x` (first axis) plus l0/2,
-    measured from `floor` [m]; zero when the column is dry."""
+    """Height of the highest fluid particle within 3 l0 / 4 of `x` (first axis)
+    plus l0/2, measured from `floor` [m]; zero when the column is dry. The window
+    holds one lattice column where `x` is on it and both where it lies between
+    two (a window of l0 / 2 would hold neither, or one by round-off, midway), and
+    a column stays in it while it sways by less than l0 / 4."""
 
     name: str
     x: float
@@ -80,7 +83,7 @@ class WaterLevel(AbstractProbe):
     def __call__(self, scene: Scene, state: State):
         del scene
         fluid = jnp.logical_and(state.active, state.kind == int(Kind.FLUID))
-        near = jnp.abs(state.position[:, 0] - self.x) < 0.5 * self.spacing
+        near = jnp.abs(state.position[:, 0] - self.x) <= 0.75 * self.spacing
         top = jnp.max(jnp.where(fluid & near, state.position[:, -1], -jnp.inf))
         level = top + 0.5 * self.spacing - self.floor
         return jnp.where(jnp.isfinite(level), level, 0.0)
