@@ -280,3 +280,30 @@ def test_a_damped_oscillation_fit_recovers_period_and_damping():
         fit_damped_oscillation(t, t[:-1], 1.0)
     with pytest.raises(ValueError, match="period > 0"):
         fit_damped_oscillation(t, t, -1.0)
+
+
+def test_a_curve_beyond_the_rollout_or_a_start_the_transform_cannot_take_is_refused():
+    """Samples after the rollout's last save would be compared with that save
+    held flat; log(0) is a start no step moves. Both are refused up front,
+    naming what to change; a window that leaves the late samples out is taken."""
+    case = jaxmps.scenes.dam_break(spacing=0.0146, dt=2e-3)
+    late = Curve(times=np.linspace(0.01, 0.8, 8), values=np.linspace(0.14, 0.3, 8))
+    fit = dict(probe="front", n_steps=40, save_every=5, iterations=1, progress=False)
+    with pytest.raises(ValueError, match=r"up to t=0\.8 s, beyond .* end t=0\.08 s"):
+        calibrate(case, {"viscosity": Log()}, late, **fit)
+    windowed = Curve(late.times, late.values, window=(0.0, 0.08))
+    assert calibrate(case, {"viscosity": Log()}, windowed, **fit).iterations == 1
+    with pytest.raises(ValueError, match=r"curve 1 has samples up to t=0\.8 s"):
+        calibrate(
+            case,
+            {"viscosity": Log()},
+            [windowed, late],
+            batch={"dt": [2e-3, 1e-3]},
+            **fit,
+        )
+    with pytest.raises(ValueError, match=r"'viscosity', 0\.0, must be positive"):
+        calibrate(
+            case, {"viscosity": Log()}, windowed, initial={"viscosity": 0.0}, **fit
+        )
+    with pytest.raises(ValueError, match=r"inside Bounded\(0\.1, 1\).*initial="):
+        calibrate(case, {"viscosity": Bounded(0.1, 1.0)}, windowed, **fit)

@@ -260,6 +260,7 @@ def calibrate(
     import optax
 
     transforms, params = _starting_point(case, fields, probe, iterations, initial)
+    _check_span(case, params, batch, curve, n_steps)
     optimiser = optax.adam(0.05) if optimiser is None else optimiser
     loop = (n_steps, save_every, checkpoint)
     if batch is None:
@@ -347,12 +348,58 @@ def _starting_point(case: Case, fields, probe: str, iterations, initial):
         base = get_field(params, name)
         value = jnp.broadcast_to(jnp.asarray(value, base.dtype), base.shape)
         params = set_field(params, name, value)
-    for name in transforms:
-        get_field(params, name)
+    for name, transform in transforms.items():
+        _check_start(name, transform, get_field(params, name))
     # The starting point passes the checks of a single run.
     check_values(params, "calibrate, starting values: ")
     check_compatible(case.scene, params, case.state)
     return transforms, params
+
+
+def _check_start(name: str, transform: AbstractTransform, value) -> None:
+    """A starting value the transform can invert (ValueError naming `initial`):
+    Log() needs it positive (log 0 = -inf, from which no step moves), Bounded
+    inside its bounds."""
+    value = np.asarray(value, float)
+    if isinstance(transform, Log):
+        bad, rule = not np.all(value > 0), "positive (Log() fits its logarithm)"
+    elif isinstance(transform, Bounded):
+        bad = not np.all((value > transform.low) & (value < transform.high))
+        rule = f"inside Bounded({transform.low:g}, {transform.high:g})"
+    else:
+        return
+    if bad:
+        raise ValueError(
+            f"calibrate: the starting value of {name!r}, {value.tolist()}, must be "
+            f"{rule}; give one in `initial` (e.g. initial={{{name!r}: ...}})."
+        )
+
+
+def _check_span(case: Case, params, batch, curves, n_steps: int) -> None:
+    """Every sample the loss reads (inside the window, weight not 0) lies within
+    the rollout: a later one would be compared with the last save held flat
+    (ValueError naming n_steps and Curve.window). With adaptive steps the rollout
+    may end sooner; its end with the largest step is what is checked."""
+    curves = [curves] if isinstance(curves, Curve) else list(curves)
+    dt = np.asarray(get_field(params, "dt"), float)
+    if batch is not None and "dt" in batch:
+        dt = np.asarray(batch["dt"], float)
+    dts = np.broadcast_to(dt.reshape(-1), (len(curves),))
+    t0 = float(np.asarray(case.state.time))
+    for i, (curve, step) in enumerate(zip(curves, dts)):
+        weights = np.ones(curve.times.shape) if curve.weights is None else curve.weights
+        read = curve.mask() & (np.asarray(weights, float) != 0)
+        if not read.any():
+            continue
+        last, end = float(curve.times[read].max()), t0 + n_steps * float(step)
+        if last > end * (1 + 1e-9) + 1e-12:
+            which = f"curve {i}" if len(curves) > 1 else "the curve"
+            raise ValueError(
+                f"calibrate: {which} has samples up to t={last:.6g} s, beyond the "
+                f"rollout's end t={end:.6g} s ({n_steps} steps of dt={step:.4g} s "
+                f"from t={t0:.6g} s), where the probe would be held at its last "
+                "save; raise n_steps or leave those samples out (Curve.window)."
+            )
 
 
 def _failed_iterate(it: int, code: int, loss: float, history, transforms) -> str:
