@@ -12,6 +12,7 @@ from pathlib import Path
 from typing import Any
 
 import equinox as eqx
+import h5py
 import jax
 import numpy as np
 from jaxtyping import Array, ArrayLike, Int
@@ -458,6 +459,10 @@ def run(
     run file and `/state` is updated. Each chunk runs with `throw=False`; its
     result is checked on the host.
 
+    The run file records the t_end and save_every asked for and how the run
+    ended (root attributes `t_end`, `save_every`, `status`: running, complete,
+    failed or interrupted, and `status_message`; `jaxmps info` prints them).
+
     The run file is never lost or clobbered: the arguments, the restart file and
     the case's settings are checked before any file is touched; a new file is
     written as `.NAME.partial` next to `out` and moved to `out` (`os.replace`)
@@ -468,11 +473,13 @@ def run(
 
     Args:
         case: a `jaxmps.scenes.Case`.
-        t_end: simulated end time [s] (default `case.t_end`). On restart, the total time
-            of the run, not the time to add.
+        t_end: simulated end time [s] (default `case.t_end`; on restart, the one
+            the file was asked for). On restart, the total time of the run, not
+            the time to add; a file already at or past it is refused.
         out: run file (`.h5` or `.hdf5`) to write, with an `.xdmf` sidecar; None
             writes nothing.
-        save_every: simulated time between saves [s] (default: t_end / 100).
+        save_every: simulated time between saves [s] (default: t_end / 100; on
+            restart, the file's).
         progress: show a progress bar when the run takes more than a few seconds.
         chunk_saves: the most saves per compiled chunk.
         restart: continue from `/state` of `out` and append to it.
@@ -502,18 +509,29 @@ def run(
             the file, which keeps what was written before.
     """
     started = _time.perf_counter()
-    t_end = _seconds("t_end", case.t_end if t_end is None else t_end)
-    save_every = t_end / 100 if save_every is None else save_every
-    save_every = _seconds("save_every", save_every)
     out = None if out is None else Path(out)
     restart_from, append = _restart_source(out, restart, restart_from)
+    # A restart continues to the end its file was asked for, on its grid of saves.
+    asked = asked_times(restart_from)
+    t_end = asked.get("t_end", case.t_end) if t_end is None else t_end
+    t_end = _seconds("t_end", t_end)
+    if save_every is None:
+        save_every = asked.get("save_every", t_end / 100)
+    save_every = _seconds("save_every", save_every)
     state = _starting_state(case, out, restart_from, append, overwrite)
     t_now = float(np.asarray(state.time))
+    if restart_from is not None and not t_end > t_now * (1 + 1e-9):
+        raise ValueError(
+            f"'{restart_from}' is already at t={t_now:.6g} s, at or past "
+            f"t_end={t_end:.6g} s: give a later t_end (--t-end) to continue it."
+        )
     dt = float(np.asarray(case.params.dt))
     plan = _plan(dt, t_end, save_every, t_now, chunk_saves, max_steps_per_save)
     done = int(np.asarray(state.step))
     label = f"{case.name} (t_end={t_end:g} s)" if progress else None
-    state, rows = _written(case, state, plan, out, append, done, label)
+    state, rows = _written(
+        case, state, plan, (out, append, done, label), (t_end, save_every)
+    )
     _warn_escaped(case, state)
     return RunResult(
         state=state,
@@ -528,21 +546,32 @@ def _written(
     case: Case,
     state: State,
     plan: _Plan,
-    out: Path | None,
-    append: bool,
-    done: int,
-    label: str | None,
+    where: tuple[Path | None, bool, int, str | None],
+    asked: tuple[float, float],
 ) -> tuple[State, list[dict]]:
     """Make the plan's saves into the run file (`_saves`), with a progress bar
     titled `label` (None: none), signals deferred to the end of a chunk, and a
-    failed write named; the final state and the probe rows."""
+    failed write named; the final state and the probe rows. `where`: (out,
+    append, steps done, label); `asked`: (t_end, save_every), recorded in the
+    file with how the run ends (`RunWriter.record_status`)."""
+    out, append, done, label = where
     t_now = float(np.asarray(state.time))
     writer = None
     with _deferred_signals() as received:
         try:
             writer = _open_writer(out, case, append, done)
+            if writer is not None:
+                writer.record_run(*asked)
             with _progress(label is not None, plan, t_now, label or "") as bar:
-                return _saves(case, state, plan, writer, out, append, bar, received)
+                ended = _saves(case, state, plan, writer, out, append, bar, received)
+            _ended(writer, "complete")
+            return ended
+        except RuntimeError as e:
+            _ended(writer, "failed", str(e))
+            raise
+        except KeyboardInterrupt as e:
+            _ended(writer, "interrupted", str(e) or "interrupted")
+            raise
         except OSError as e:
             if writer is None or writer.path != out:
                 raise
@@ -552,6 +581,31 @@ def _written(
                 writer.close()
                 if out is not None and writer.path != out:
                     writer.path.unlink(missing_ok=True)
+
+
+def _ended(writer: RunWriter | None, status: str, message: str = "") -> None:
+    """Record how the run ended in its file, if it has one that can still be
+    written (a failed write leaves the status 'running')."""
+    if writer is None:
+        return
+    try:
+        writer.record_status(status, message)
+    except (OSError, ValueError, RuntimeError):
+        pass
+
+
+def asked_times(path: Path | None) -> dict[str, float]:
+    """The t_end and save_every a run file was asked for ({} for none, a file
+    that does not exist, or one written before they were recorded)."""
+    if path is None or not Path(path).is_file():
+        return {}
+    try:
+        with h5py.File(path, "r") as f:
+            return {
+                k: float(f.attrs[k]) for k in ("t_end", "save_every") if k in f.attrs
+            }
+    except OSError:
+        return {}
 
 
 def _warn_escaped(case: Case, state: State) -> None:
@@ -636,14 +690,18 @@ def _saves(
         rows.append(_first_frame(observer, case, state, writer))
         if writer is not None:
             writer.move_to(out)
+    # Progress in the plan's (float64) times: the state's time may be float32,
+    # whose rounding summed over the chunks overran the bar's total.
+    before = float(np.asarray(state.time))
     for times in plan.chunks():
         if received:
             break
-        before = float(np.asarray(state.time))
         state, values = _chunk(case, observer, state, times, plan, writer, out)
         rows.append(values)
         if bar is not None:
-            bar.update(round(float(times[-1]) - before, 9))
+            step = round(float(times[-1]) - before, 9)
+            bar.update(max(0.0, min(step, bar.total - bar.n)))
+        before = float(times[-1])
     if received:
         raise RunInterrupted(received[0], out, float(np.asarray(state.time)))
     return state, rows

@@ -145,28 +145,49 @@ def sweep_run(
     dt = float(np.max(np.asarray(batched.dt)))
     plan = _plan(dt, t_end, save_every, 0.0, chunk_saves, max_steps_per_save)
     index = _new_index(case, values, b, t_end, save_every, mesh)
-    writers = _open(out, case, index["members"]) if jax.process_index() == 0 else None
+    writers = (
+        _open(out, case, index["members"], t_end, save_every)
+        if jax.process_index() == 0
+        else None
+    )
     try:
         label = f"sweep of {case.name}: {b} members" if progress else None
         with (
             _deferred_signals() as received,
             _progress(label is not None, plan, 0.0, label or "") as bar,
         ):
-            _chunks(
-                case,
-                (batched, axes, b),
-                plan,
-                mesh,
-                (writers, out, index),
-                bar,
-                received,
-            )
+            try:
+                _chunks(
+                    case,
+                    (batched, axes, b),
+                    plan,
+                    mesh,
+                    (writers, out, index),
+                    bar,
+                    received,
+                )
+            except KeyboardInterrupt as e:
+                _ended(writers, out, index, "interrupted", str(e) or "interrupted")
+                raise
+            _ended(writers, out, index, "complete")
     finally:
         for w in writers or ():
             w.close()
     return SweepRunResult(
         folder=out, index=index, wall_time=_time.perf_counter() - started
     )
+
+
+def _ended(writers, out: Path, index: dict, status: str, message: str = "") -> None:
+    """Record how the sweep ended in the index and in each member's file whose
+    run did not fail before (those say so already)."""
+    if writers is None:
+        return
+    index["status"] = status if not message else f"{status}: {message}"
+    _write_index(out, index)
+    for writer, member in zip(writers, index["members"]):
+        if not member.get("code"):
+            writer.record_status(status, message)
 
 
 def _new_index(case: Case, values, b: int, t_end, save_every, mesh: Mesh) -> dict:
@@ -225,7 +246,9 @@ def _chunks(case: Case, batch: tuple, plan, mesh, files, bar, received) -> None:
             raise RunInterrupted(received[0], out, float(times[-1]))
 
 
-def _open(out: Path, case: Case, members: list[dict]) -> list[RunWriter]:
+def _open(
+    out: Path, case: Case, members: list[dict], t_end: float, save_every: float
+) -> list[RunWriter]:
     """The members' run files, new. Each file's config holds its member's values
     where a varied name is a scene setting (viscosity, density, ...), so that
     `jaxmps run --restart` continues the member; the attribute `sweep_values`
@@ -240,6 +263,7 @@ def _open(out: Path, case: Case, members: list[dict]) -> list[RunWriter]:
         config.update({k: v for k, v in m["values"].items() if k in config})
         writer = RunWriter(out / m["file"], dataclasses.replace(case, config=config))
         writer.file.attrs["sweep_values"] = json.dumps(m["values"])
+        writer.record_run(t_end, save_every)
         writers.append(writer)
     return writers
 
@@ -269,6 +293,8 @@ def _record(trajectory, writers, failed, reached, members) -> None:
         member["code"] = code
         if code:
             member["message"] = Result[item]
+            if writers:
+                writers[i].record_status("failed", member["message"])
         member["t_reached"] = float(reached[i])
         member["steps"] = int(np.asarray(rows[1])[-1])
 

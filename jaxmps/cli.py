@@ -3,6 +3,7 @@
 import argparse
 import json
 import math
+import os
 import sys
 import warnings
 from pathlib import Path
@@ -45,6 +46,9 @@ def _cmd_scenes(args) -> int:
     return 0
 
 
+_DEFAULT_SCENE = "dam_break"
+
+
 class UsageError(ValueError):
     """A refused command line, printed as one line (exit code 2)."""
 
@@ -54,8 +58,6 @@ def _start_jax(x64: bool, platform_only: bool = False):
     cannot start, e.g. JAX_PLATFORMS=cuda on a machine without a GPU. With
     `platform_only` the backend is left to start later (a multi-process run
     starts it after joining the other processes)."""
-    import os
-
     import jax
 
     if x64:
@@ -85,7 +87,9 @@ def _cmd_run(args) -> int:
     if args.out:
         out = Path(args.out)
     else:
-        out = source if source is not None else Path(f"{args.scene}.h5")
+        out = (
+            source if source is not None else Path(f"{args.scene or _DEFAULT_SCENE}.h5")
+        )
     source = out if restart and source is None else source
     append = restart and out.resolve() == source.resolve()
     # The output is checked before any work, and before JAX starts.
@@ -94,14 +98,23 @@ def _cmd_run(args) -> int:
         raise UsageError(f"--restart: '{source}' does not exist.")
     _start_jax(args.x64)
     from . import scenes
-    from ._driver import run
+    from ._driver import asked_times, run
     from .io import read_run
 
-    scene = args.scene
+    scene = args.scene or _DEFAULT_SCENE
+    t_end = args.t_end
     if restart:
         data = read_run(source)
         scene = str(data.attrs["scene"])
+        if args.scene is not None and args.scene != scene:
+            raise UsageError(
+                f"--restart: '{source}' is a run of '{scene}', not '{args.scene}'; "
+                "leave the scene out to continue it, or start a new run without "
+                "--restart."
+            )
         overrides = {**scenes.stored_settings(scene, data.config), **overrides}
+        if t_end is None:
+            t_end = asked_times(source).get("t_end")
     case = scenes.build(scene, **overrides)
     n = int(case.state.active.sum())
     dt = float(case.params.dt)
@@ -112,7 +125,7 @@ def _cmd_run(args) -> int:
     )
     print(
         f"jaxmps: {case.name}, {n} particles, {steps}, "
-        f"t_end={args.t_end if args.t_end is not None else case.t_end:g} s"
+        f"t_end={t_end if t_end is not None else case.t_end:g} s"
         + (f" (restart from {source})" if restart else "")
     )
     try:
@@ -136,10 +149,19 @@ def _cmd_run(args) -> int:
     except KeyboardInterrupt as e:
         signum = getattr(e, "signal", 2)
         text = str(e) or "interrupted"
-        print(
-            f"jaxmps run: {text}; continue with `jaxmps run --restart {out}`.",
-            file=sys.stderr,
+        then = (
+            f"continue with `jaxmps run --restart {out}`"
+            if out.exists()
+            else f"stopped before its first frame, so no '{out}' was written"
         )
+        print(f"jaxmps run: {text}; {then}.", file=sys.stderr)
+        if not hasattr(e, "signal"):
+            # A second signal stopped the run at once, possibly inside XLA's
+            # compiler, whose threads then crash the interpreter's shutdown
+            # (a segmentation fault): the file is closed, so leave now.
+            sys.stdout.flush()
+            sys.stderr.flush()
+            os._exit(128 + signum)
         return 128 + signum
     escaped = int(result.state.escaped)
     if escaped:
@@ -218,7 +240,15 @@ def _cmd_sweep(args) -> int:
 
     overrides = _parse_overrides(args.set)
     varied = _parse_vary(args.vary)
+    if "gravity" in varied:
+        raise UsageError(
+            "--vary gravity: Params.gravity is a vector (one component per axis), "
+            "which --vary cannot give; run one sweep per --set gravity=..., or "
+            "sweep it from Python: jaxmps.sweep(case, {'gravity': [[0, -9.81], "
+            "[0, -5.0]]}, ...)."
+        )
     _check_times(args)
+    args.scene = args.scene or _DEFAULT_SCENE
     out = check_folder(args.out or f"{args.scene}_sweep", args.overwrite)
     jax = _start_jax(args.x64, platform_only=args.coordinator is not None)
     _start_processes(args, jax)
@@ -284,6 +314,8 @@ def _cmd_info(args) -> int:
 
 def _describe(data) -> int:
     """Print what a run file holds."""
+    import numpy as np
+
     a = data.attrs
     print(
         f"{data.path}: jaxmps run file (format_version {a.get('format_version')}, "
@@ -293,23 +325,30 @@ def _describe(data) -> int:
         f"  scene    {a.get('scene')}  (dim {a.get('dim')}, "
         f"spacing {a.get('spacing'):g} m, dt {a.get('dt'):.4g} s)"
     )
+    _describe_status(data)
     kind = data.particles["kind"]
+    # Active particles of the last state (a pool's free slots are fluid slots
+    # that hold no particle), or of the last frame.
+    active = data.state.get("active")
+    if active is None and len(data.frames.get("active", ())):
+        active = data.frames["active"][-1]
+    active = np.ones(len(kind), bool) if active is None else np.asarray(active, bool)
     counts = ", ".join(
-        f"{name} {int((kind == k).sum())}"
+        f"{name} {int((active & (kind == k)).sum())}"
         for k, name in enumerate(
             ["fluid", "wall", "dummy", "rigid", "elastic", "sediment"]
         )
-        if (kind == k).any()
+        if (active & (kind == k)).any()
     )
-    print(f"  particles {len(kind)} ({counts})")
+    free = len(kind) - int(active.sum())
+    pool = f"; {free} free slots of {len(kind)}" if free else ""
+    print(f"  particles {int(active.sum())} ({counts}{pool})")
     times = data.frames.get("time")
     if times is not None and len(times):
         print(
             f"  frames   {len(times)}, t = {times[0]:.4g} ... {times[-1]:.4g} s, "
             f"steps {int(data.frames['step'][0])} ... {int(data.frames['step'][-1])}"
         )
-        import numpy as np
-
         low, high = data.frames.get("dt_min"), data.frames.get("dt_max")
         if low is not None and np.any(np.isfinite(low)):
             print(
@@ -343,6 +382,21 @@ def _describe(data) -> int:
     return 0
 
 
+def _describe_status(data) -> None:
+    """The run's line: how it ended and the end it was asked for (files written
+    before these were recorded have no such line)."""
+    a = data.attrs
+    status = a.get("status")
+    if status is None:
+        return
+    asked = f" (asked for t_end = {a['t_end']:g} s)" if "t_end" in a else ""
+    message = a.get("status_message") or ""
+    line = f"  run      {status}{asked}" + (f": {message}" if message else "")
+    if status in ("interrupted", "running"):
+        line += f"; continue with `jaxmps run --restart {data.path}`"
+    print(line)
+
+
 def _describe_sweep(path: Path) -> int:
     """Print what a sweep's folder (or its index) holds: a line per member."""
     from ._sweep_files import read_index
@@ -355,6 +409,8 @@ def _describe_sweep(path: Path) -> int:
         f"{index.get('jaxmps_version')}), {len(members)} members, {ok} successful, "
         f"t_end {index.get('t_end')} s, on {index.get('devices')} device(s)"
     )
+    if "status" in index:
+        print(f"  sweep    {index['status']}")
     varied = index.get("varied", [])
     print(f"  varied   {', '.join(varied)}")
     print(f"  config   {json.dumps(index.get('config'), sort_keys=True)}")
@@ -523,7 +579,8 @@ its own --process-id; process 0 writes the files."""
 
 def _scene_and_times(p) -> None:
     """The arguments `run` and `sweep` share: the scene, its settings, the times."""
-    p.add_argument("scene", nargs="?", default="dam_break")
+    # None: dam_break, or with --restart the file's scene.
+    p.add_argument("scene", nargs="?", default=None)
     p.add_argument(
         "--set",
         action="append",

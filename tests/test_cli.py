@@ -2,6 +2,7 @@
 
 import re
 
+import jax.numpy as jnp
 import numpy as np
 import pytest
 
@@ -92,6 +93,28 @@ def test_info(run_file, capsys):
     assert main(["info", str(run_file)]) == 0
     text = capsys.readouterr().out
     assert "hydrostatic" in text and "frames" in text and "water_level" in text
+
+
+def test_info_counts_the_particles_not_the_free_slots(tmp_path, capsys):
+    """A pool's free slots (inactive fluid slots, as inflows and grains keep) are
+    not particles: `info` counts the active ones of the last state."""
+    import dataclasses
+
+    case = jaxmps.scenes.hydrostatic(spacing=0.05)
+    fluid = np.asarray(case.state.kind) == int(jaxmps.Kind.FLUID)
+    free = np.flatnonzero(fluid)[:3]
+    active = np.asarray(case.state.active).copy()
+    active[free] = False
+    state = dataclasses.replace(case.state, active=jnp.asarray(active))
+    path = tmp_path / "pool.h5"
+    with jaxmps.io.RunWriter(path, case) as writer:
+        writer.write_state(state)
+    assert main(["info", str(path)]) == 0
+    out = capsys.readouterr().out.splitlines()
+    line = next(x for x in out if x.startswith("  particles"))
+    n, n_fluid = len(active), int(fluid.sum())
+    assert f"particles {n - 3} (fluid {n_fluid - 3}, " in line
+    assert f"3 free slots of {n})" in line
 
 
 def test_info_bad_file(tmp_path, capsys):

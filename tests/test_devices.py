@@ -136,6 +136,7 @@ def test_sweep_command_writes_a_run_file_per_member_and_an_index(tmp_path, capsy
         (["--vary", "viscosity=-1"], "viscosity"),
         (["--vary", "viscosity=1e-6", "--out", "x.h5"], "names a run file"),
         (["--vary", "viscosity=1e-6", "--num-processes", "2"], "go together"),
+        (["--vary", "gravity=9.81,5"], "--vary gravity: Params.gravity is a vector"),
     ],
 )
 def test_sweep_command_refuses_bad_input(tmp_path, capsys, monkeypatch, argv, message):

@@ -149,6 +149,34 @@ def test_an_exception_mid_run_keeps_the_frames_written(tmp_path, case, monkeypat
     np.testing.assert_array_equal(data.state["position"], data.frames["position"][-1])
     assert path.with_suffix(".xdmf").exists()
     assert _leftovers(tmp_path) == []
+    # An exception that is not the run's own failure leaves it 'running': it
+    # stopped without finishing, and a restart continues it.
+    assert data.attrs["status"] == "running"
+
+
+def test_the_file_says_how_the_run_ended(tmp_path, case, capsys):
+    dt = float(case.params.dt)
+    path = tmp_path / "run.h5"
+    _run(case, path)
+    data = io.read_run(path)
+    assert data.attrs["status"] == "complete" and data.attrs["status_message"] == ""
+    assert data.attrs["t_end"] == 8 * dt and data.attrs["save_every"] == 2 * dt
+    assert main(["info", str(path)]) == 0
+    assert "run      complete (asked for t_end" in capsys.readouterr().out
+    # A file at its end continues only to a later one.
+    with pytest.raises(ValueError, match=r"already at t=.*give a later t_end"):
+        _run(case, path, restart=True, t_end=None)
+    # A step 40 times the largest fails at its first save: the file says so.
+    failing = jaxmps.scenes.hydrostatic(spacing=0.05, dt=40 * dt)
+    bad = tmp_path / "failed.h5"
+    with pytest.raises(RuntimeError, match="failed between"):
+        _run(failing, bad, t_end=320 * dt, save_every=80 * dt)
+    data = io.read_run(bad)
+    assert data.attrs["status"] == "failed"
+    assert "failed between" in data.attrs["status_message"]
+    assert int(data.state["result"]) == 0  # /state: the last good save's
+    main(["info", str(bad)])
+    assert "run      failed" in capsys.readouterr().out
 
 
 def _disk_full_after(monkeypatch, calls: int):
@@ -225,6 +253,36 @@ def test_a_signal_stops_the_run_with_a_valid_file(tmp_path, signum):
     assert int(data.state["result"]) == 0
     assert len(data.probes["time"]) == len(steps)
     assert _leftovers(tmp_path) == []
+    assert data.attrs["status"] == "interrupted"
+    assert data.attrs["t_end"] == 1000 and data.attrs["save_every"] == 0.01
+    assert f"stopped by {signal.Signals(signum).name}" in data.attrs["status_message"]
+
+
+def test_a_restart_continues_to_the_end_the_file_was_asked_for(tmp_path, case):
+    """As after a signal: a file stopped short of its t_end. A restart without
+    one goes on to it, on the same grid of saves."""
+    dt = float(case.params.dt)
+    path = tmp_path / "run.h5"
+    _run(case, path, t_end=4 * dt)
+    with io.RunWriter(path, case, append=True) as writer:
+        writer.record_run(8 * dt, 2 * dt)  # as if asked for 8 steps
+    result = jaxmps.run(case, out=path, restart=True, progress=False, chunk_saves=2)
+    assert int(result.state.step) == 8
+    data = io.read_run(path)
+    np.testing.assert_array_equal(data.frames["step"], [0, 2, 4, 6, 8])
+    assert data.attrs["status"] == "complete"
+
+
+def test_a_restart_of_another_scene_is_refused(tmp_path, case, capsys):
+    path = tmp_path / "run.h5"
+    _run(case, path)
+    before = _snapshot(path)
+    with pytest.raises(SystemExit) as exit_code:
+        main(["run", "dam_break", "--restart", str(path)])
+    assert exit_code.value.code == 2
+    err = capsys.readouterr().err
+    assert "is a run of 'hydrostatic', not 'dam_break'" in err
+    assert _snapshot(path) == before
 
 
 def test_a_restart_in_another_precision_is_refused(tmp_path):

@@ -2,6 +2,7 @@
 
 from ._hdf5 import FORMAT as FORMAT
 from ._hdf5 import FORMAT_VERSION as FORMAT_VERSION
+from ._hdf5 import RUN_STATUSES as RUN_STATUSES
 from ._hdf5 import RunData as RunData
 from ._hdf5 import RunWriter as RunWriter
 from ._hdf5 import load_state as load_state

@@ -19,6 +19,11 @@ from .._state import State
 FORMAT = "jaxmps-run"
 FORMAT_VERSION = 1
 
+# How a run file's run ended (root attribute `status`): still running (or
+# stopped without a word: a crash, a full disk), at its t_end, at a failure of
+# the rollout, or by a signal.
+RUN_STATUSES = ("running", "complete", "failed", "interrupted")
+
 # /state fields, in State order (result is stored as its integer value).
 STATE_FIELDS = (
     "time",
@@ -309,6 +314,23 @@ class RunWriter:
                 sub.create_dataset(name, data=np.asarray(value))
         self.file.flush()
 
+    def record_run(self, t_end: float, save_every: float) -> None:
+        """Record the end time and save interval the run is asked for (a restart
+        without them continues to the same end on the same grid of saves), and
+        mark it running until `record_status` says how it ended."""
+        self.file.attrs["t_end"] = float(t_end)
+        self.file.attrs["save_every"] = float(save_every)
+        self.record_status("running")
+
+    def record_status(self, status: str, message: str = "") -> None:
+        """Record how the run ended: one of `RUN_STATUSES`, with a message (the
+        failure's, or where the run was stopped)."""
+        if status not in RUN_STATUSES:
+            raise ValueError(f"status {status!r} is not one of {RUN_STATUSES}.")
+        self.file.attrs["status"] = status
+        self.file.attrs["status_message"] = message
+        self.file.flush()
+
     def truncate(self, n_frames: int) -> None:
         """Keep only the first `n_frames` frames and probe rows (drop frames computed
         after the state a restart continues from)."""
@@ -444,7 +466,9 @@ class RunData:
     Attributes:
         path: the file read.
         attrs: root attributes (format, format_version, jaxmps_version, scene, dim,
-            spacing, dt).
+            spacing, dt; in files of `jaxmps.run` and `jaxmps.sweep_run` also
+            t_end and save_every, as asked for, and status, one of
+            `RUN_STATUSES`, with status_message).
         config: the scene overrides the run was built with.
         particles: {"kind": (n,) int8, "body": (n,) int32}.
         frames: {"time", "step", "position", "velocity", "pressure", "active"},
