@@ -8,7 +8,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from . import bodies, schemes
-from ._params import ElasticParams, Params, RigidParams
+from ._params import ElasticParams, Params, RigidParams, check_values
 from ._result import Result
 from ._scene import Scene
 from ._state import State
@@ -246,10 +246,18 @@ def make_params(
 
     `dtype` defaults to JAX's default float (float32, or float64 with x64 enabled).
     """
+    if dim not in (2, 3):
+        raise ValueError(f"make_params: dim must be 2 or 3, got {dim!r}.")
+    if np.ndim(gravity) != 0 or gravity < 0:  # (not finite: Params says so)
+        raise ValueError(
+            f"make_params: gravity is its magnitude [m/s^2], pointing down the "
+            f"last axis: a number >= 0, got {gravity!r} (another direction: set "
+            "Params.gravity, a vector, e.g. with equinox.tree_at)."
+        )
     dtype = jnp.zeros(()).dtype if dtype is None else dtype
     g = np.zeros(dim)
     g[-1] = -gravity
-    return Params(
+    params = Params(
         density=jnp.asarray(density, dtype),
         viscosity=jnp.asarray(viscosity, dtype),
         gravity=jnp.asarray(g, dtype),
@@ -260,6 +268,8 @@ def make_params(
             None if relaxation_step is None else jnp.asarray(relaxation_step, dtype)
         ),
     )
+    check_values(params, "make_params: ")
+    return params
 
 
 def make_state(

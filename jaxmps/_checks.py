@@ -23,6 +23,7 @@ def check_compatible(scene: Scene, params: Params, state: State) -> None:
             f"{scene.capacity} in {scene.dim}-D; build both from the same case."
         )
     _check_params_shapes(scene, params)
+    check_values(params)
     # Under adaptive steps Params.dt is only the largest step: the limits below
     # then bound every step instead of refusing the run.
     if scene.time_step is None:
@@ -112,7 +113,7 @@ def _check_params_shapes(scene: Scene, params: Params) -> None:
     expected["sound_speed"] = ()
     expected["gravity"] = (scene.dim,)
     for name, shape in expected.items():
-        got = tuple(getattr(params, name).shape)
+        got = tuple(np.shape(getattr(params, name)))
         if got != shape:
             hint = (
                 f"the Scene is {scene.dim}-D"

@@ -15,7 +15,7 @@ VALUE_RULES = {
     "density": "positive",
     "dt": "positive",
     "relaxation_step": "positive",
-    "beta": "positive",
+    "beta": "in (0, 1]",
     "sound_speed": "positive",
     "viscosity": ">= 0",
     "rigid.density": "positive",

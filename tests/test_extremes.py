@@ -329,6 +329,35 @@ BAD_INPUTS = {
         "use solver=semi_implicit",
     ),
     "negative dt": (lambda: jaxmps.make_params(2, dt=-1e-3), "dt must be positive"),
+    "gravity given as a negative magnitude": (
+        lambda: jaxmps.make_params(2, dt=1e-3, gravity=-9.81),
+        r"gravity is its magnitude .* got -9\.81 \(another direction: set "
+        "Params.gravity",
+    ),
+    "Params of five dimensions": (
+        lambda: jaxmps.make_params(5, dt=1e-3),
+        "dim must be 2 or 3, got 5",
+    ),
+    "a surface threshold beyond 1, swept": (
+        lambda: jaxmps.sweep(
+            jaxmps.scenes.hydrostatic(spacing=0.05), {"beta": [0.97, 1.5]}, 2, 2
+        ),
+        r"Sweep member 1 \(beta=1.5\): Params.beta must be in \(0, 1\], got 1.5",
+    ),
+    "a negative surface threshold set by hand (a float, not an array)": (
+        lambda: jaxmps.simulate(
+            *(
+                lambda c: (
+                    c.scene,
+                    eqx.tree_at(lambda p: p.beta, c.params, -1.0),
+                    c.state,
+                )
+            )(jaxmps.scenes.hydrostatic(spacing=0.05)),
+            2,
+            2,
+        ),
+        r"Params.beta must be in \(0, 1\], got -1.0",
+    ),
     "capacity below the particle count": (
         lambda: jaxmps.make_scene(
             np.zeros((4, 2)) + 0.5, 0.01, ([0, 0], [1, 1]), capacity=2
@@ -347,6 +376,18 @@ BAD_INPUTS = {
     "standing-wave amplitude beyond the depth": (
         lambda: jaxmps.scenes.standing_wave(amplitude=0.6),
         "amplitude=0.6 must lie in",
+    ),
+    "a standing wave shorter than 8 spacings": (
+        lambda: jaxmps.scenes.standing_wave(spacing=0.05, mode_number=50),
+        r"mode_number=50 makes a wave 0.04 m long .* under 8 particle spacings",
+    ),
+    "water deeper than the shaken tank's walls": (
+        lambda: jaxmps.scenes.sloshing_tank(spacing=0.05, depth=0.8),
+        r"depth=0.8 m fills the tank \(tank_height=0.6 m\)",
+    ),
+    "a piston stroke whose waves overtop the tank": (
+        lambda: jaxmps.scenes.wave_tank(spacing=0.05, stroke=3.0),
+        r"stroke=3 m makes linear waves 2.63 m high .* shorten stroke \(at most",
     ),
     "sweep over a misspelt field": (
         _sweep_unknown,

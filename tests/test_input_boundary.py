@@ -175,6 +175,10 @@ def test_the_particle_limit_is_configurable(monkeypatch):
         jaxmps.scenes.hydrostatic(spacing=0.02)
     monkeypatch.setenv("JAXMPS_MAX_PARTICLES", "1e6")
     jaxmps.scenes.hydrostatic(spacing=0.05)
+    for bad in ("-5", "0", "abc", "inf"):
+        monkeypatch.setenv("JAXMPS_MAX_PARTICLES", bad)
+        with pytest.raises(ValueError, match=r"is not a number of particles.*unset"):
+            jaxmps.scenes.hydrostatic(spacing=0.05)
 
 
 def test_an_unknown_particle_kind_is_refused():

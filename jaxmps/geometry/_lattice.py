@@ -20,11 +20,15 @@ def particle_limit(dim: int) -> int:
     setting = os.environ.get("JAXMPS_MAX_PARTICLES")
     if setting:
         try:
-            return int(float(setting))
+            limit = float(setting)
         except ValueError:
+            limit = math.nan
+        if not (math.isfinite(limit) and limit >= 1):
             raise ValueError(
-                f"JAXMPS_MAX_PARTICLES={setting!r} is not a number of particles."
-            ) from None
+                f"JAXMPS_MAX_PARTICLES={setting!r} is not a number of particles "
+                "(a whole number >= 1); unset it to use the machine's memory."
+            )
+        return int(limit)
     try:
         memory = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
     except (ValueError, OSError, AttributeError):

@@ -21,6 +21,7 @@ from ._common import (
     whole,
 )
 from ._probes import ModeAmplitude, RunUp, StripLevel
+from ._wave_tank import RESOLVED_WAVELENGTH
 
 
 def natural_frequency(length: float, depth: float, mode: int, gravity: float):
@@ -83,6 +84,13 @@ def standing_wave(**overrides) -> Case:
     length, depth = setting_length(c, "tank_length"), setting_length(c, "depth")
     height = setting_length(c, "tank_height")
     amp = float(c["amplitude"])
+    wavelength = 2 * length / m
+    if wavelength < RESOLVED_WAVELENGTH * l0:
+        raise ValueError(
+            f"mode_number={m} makes a wave {wavelength:.3g} m long in the "
+            f"{length:g} m tank, under {RESOLVED_WAVELENGTH} particle spacings "
+            f"({l0:g} m): lower mode_number or refine spacing."
+        )
     if not 0 <= amp < min(depth, height - depth):
         raise ValueError(
             f"amplitude={amp} must lie in [0, min(depth, tank_height - depth))."
@@ -217,6 +225,11 @@ def sloshing_tank(**overrides) -> Case:
         raise ValueError("sloshing_tank is 2-D (dim=2).")
     l0 = c["spacing"]
     depth, height = setting_length(c, "depth"), setting_length(c, "tank_height")
+    if not depth < height:
+        raise ValueError(
+            f"depth={depth:g} m fills the tank (tank_height={height:g} m): the "
+            "water must lie below the walls' top; lower depth or raise tank_height."
+        )
     if not float(c["settle"]) >= 0:
         raise ValueError("settle must be >= 0 s.")
     strip = 3 * l0

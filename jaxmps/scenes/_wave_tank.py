@@ -77,6 +77,20 @@ def _wave_number(period: float, depth: float, gravity: float, l0: float) -> floa
     return k
 
 
+def _check_stroke(stroke: float, ratio: float, depth: float, height: float) -> None:
+    """Refuse a stroke whose linear waves would overtop the tank: crests of half
+    the wave height above the still water, over the freeboard `height - depth`
+    (the walls stand 1.6 depths high), naming `stroke` and the largest it takes."""
+    freeboard = height - depth
+    if ratio * stroke > 2 * freeboard:
+        raise ValueError(
+            f"stroke={stroke:g} m makes linear waves {ratio * stroke:.3g} m high in "
+            f"{depth:g} m of water, whose crests would overtop the tank's walls "
+            f"({freeboard:.3g} m above the still water): shorten stroke (at most "
+            f"{2 * freeboard / ratio:.3g} m) or deepen the water (depth)."
+        )
+
+
 def _stroke(c: dict, period: float, t_end: float, dtype) -> StrokeParams:
     """The piston's position table X(t) = (S/2) r(t) sin(2 pi t / T) to one period
     past `t_end`, 40 samples a period; r ramps over `ramp_periods` periods (none
@@ -108,6 +122,7 @@ def wave_tank(**overrides) -> Case:
     period = float(c["wave_period"])
     k = _wave_number(period, depth, c["gravity"], l0)
     height = whole(1.6 * depth, l0)
+    _check_stroke(float(c["stroke"]), piston_height_ratio(k, depth), depth, height)
     half_stroke = 0.5 * float(c["stroke"])
     layers = boundary_layers(c)
     travel = whole(half_stroke + l0, l0)
