@@ -45,8 +45,9 @@ class Result(eqx.Enumeration):
     step_too_large = (
         "The time step is beyond a stability limit: the Courant number max|u| dt / l0 "
         "exceeded `Scene.courant_limit`, the viscous number 2 d nu dt / lambda "
-        "exceeded `Scene.viscous_limit`, or (explicit solver) c dt / l0 exceeded "
-        "`Explicit.sound_courant`. Reduce `dt` (scene override `dt=...`), or "
+        "exceeded `Scene.viscous_limit`, (explicit solver) c dt / l0 exceeded "
+        "`Explicit.sound_courant`, or the forces carried a particle beyond r_e "
+        "in one step. Reduce `dt` (scene override `dt=...`), or "
         "let the run choose it (scene setting `dt='adaptive'`, the default)."
     )
     time_step_below_minimum = (

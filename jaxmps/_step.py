@@ -168,6 +168,12 @@ def _judged(
         outside, mobile = outside & counted, mobile & counted
     new, info = _take_out_escaped(scene, new, info, outside)
     forced = new.velocity if scene.solver.pressure_is_force else u_forced
+    # A particle the forces carry beyond its neighbourhood (r_e) in one step
+    # makes the step meaningless, whatever velocity it ends with: the searches
+    # of that step overflow, or lose the particle, and would name those instead.
+    speed = jnp.sqrt(last_axis_dot(forced, forced))
+    too_far = jnp.max(jnp.where(mobile, speed, 0.0)) * params.dt > scene.r_e
+    info = dataclasses.replace(info, unstable=info.unstable | too_far)
     accel = (forced - state.velocity) / params.dt
     new = _record(scene, params, new, info, pool_short, mobile, accel, counted)
     return new, info
@@ -494,9 +500,10 @@ def _record(
     forced: Float[Array, "n d"],
     counted: Mask | None = None,
 ) -> State:
-    """Record the step's first failure in the state's result: overflows, an empty
-    pool, a particle out of the domain, a step beyond a stability limit (over the
-    `mobile` particles), an unconverged pressure solve, a non-finite state; and
+    """Record the step's first failure in the state's result: a step beyond a
+    stability limit (over the `mobile` particles), overflows, an empty pool, a
+    particle out of the domain, an unconverged pressure solve, a non-finite
+    state; and
     the step's largest acceleration by forces (`forced`: gravity and viscosity,
     and the pressure where it is a force: `pressure_is_force` of the solver). The
     finiteness is checked on the `counted` particles (None: all)."""
@@ -510,18 +517,20 @@ def _record(
     viscous = 2 * scene.dim * params.viscosity * params.dt / scene.lam
     checked = new.active if counted is None else new.active & counted
     finite = jnp.all(finite_rows(new.position, new.velocity, new.pressure) | ~checked)
-    result = new.result
-    result = update_result(result, info.cell_overflow, Result.cell_overflow)
-    result = update_result(result, info.neighbour_overflow, Result.neighbour_overflow)
-    result = update_result(result, pool_short, Result.pool_exhausted)
-    result = update_result(result, info.outside, Result.left_domain)
+    # A step beyond its stability limit comes first: the overflows and escapes
+    # of that step are its consequences (a dt 40 times too large read as a
+    # full cell or a particle out of the domain, naming the wrong setting).
     result = update_result(
-        result,
+        new.result,
         (courant > scene.courant_limit)
         | (viscous > scene.viscous_limit)
         | info.unstable,
         Result.step_too_large,
     )
+    result = update_result(result, info.cell_overflow, Result.cell_overflow)
+    result = update_result(result, info.neighbour_overflow, Result.neighbour_overflow)
+    result = update_result(result, pool_short, Result.pool_exhausted)
+    result = update_result(result, info.outside, Result.left_domain)
     result = update_result(
         result, ~info.pressure_converged, Result.pressure_not_converged
     )

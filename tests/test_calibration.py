@@ -193,7 +193,10 @@ def test_sweep_reports_a_failed_member():
     assert list(failed) == [1] and res.messages()[0] == "successful"
     code = int(np.asarray(res.result)[1])
     assert failed[1] == jaxmps.Result[jaxmps._result.result_from_code(code)]
-    assert "Courant" in failed[1] or "left the domain" in failed[1]
+    # Adaptive steps: the step beyond its limit is taken again shorter (it is
+    # named first, before the escapes it causes); what ends the run then is a
+    # failure that names the step too.
+    assert "Courant" in failed[1] or "reduce `dt`" in failed[1]
 
 
 def test_calibrate_stops_at_a_failed_rollout_and_says_which():

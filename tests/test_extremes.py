@@ -96,6 +96,18 @@ def test_explicit_dt_past_the_sound_limit_is_refused_or_reported():
     assert run(params) == jaxmps.Result.step_too_large
 
 
+@pytest.mark.parametrize("dt", [0.5, 2.0])
+def test_a_step_that_carries_particles_beyond_r_e_is_named_as_the_step(dt):
+    """Gravity alone moves the water g dt^2 (10-200 spacings) in the first step:
+    its searches overflow or lose particles, but the failure named is the step,
+    whose velocity at the end (the pressure holds the water) passes the Courant
+    test."""
+    case = jaxmps.scenes.hydrostatic(spacing=0.05, dt=dt)
+    tr = jaxmps.simulate(case.scene, case.params, case.state, 1, 1, throw=False)
+    assert tr.result == jaxmps.Result.step_too_large
+    assert "beyond r_e in one step" in jaxmps.Result[tr.result]
+
+
 # ------------------------------------------------------------ pressure solve
 
 
@@ -306,6 +318,12 @@ BAD_INPUTS = {
     "zero particles": (
         lambda: jaxmps.make_scene(np.zeros((0, 2)), 0.01, ([0, 0], [1, 1])),
         "no particles",
+    ),
+    "a particle without a place (NaN)": (
+        lambda: jaxmps.make_scene(
+            np.array([[0.1, 0.1], [np.nan, 0.2]]), 0.01, ([0, 0], [1, 1])
+        ),
+        r"position holds non-finite coordinates \(rows \[1\]\)",
     ),
     "unknown scene": (lambda: jaxmps.scenes.build("dambreak"), "Available scenes"),
     "unknown parameter": (
