@@ -96,6 +96,12 @@ def make_scene(
         The Scene, with n0 and lambda of the regular lattice (DESIGN.md §7).
     """
     position = np.asarray(position, dtype=np.float64)
+    if position.ndim == 2 and not np.all(np.isfinite(position)):
+        rows = np.flatnonzero(~np.all(np.isfinite(position), axis=1))
+        raise ValueError(
+            f"position holds non-finite coordinates (rows {rows[:5].tolist()}"
+            f"{', ...' if len(rows) > 5 else ''}); give every particle a place."
+        )
     capacity = _capacity(position, capacity)
     scheme = schemes.standard() if scheme is None else scheme
     if not (spacing > 0 and math.isfinite(spacing * spacing)):

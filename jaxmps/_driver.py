@@ -526,6 +526,14 @@ def run(
             f"t_end={t_end:.6g} s: give a later t_end (--t-end) to continue it."
         )
     dt = float(np.asarray(case.params.dt))
+    if case.scene.time_step is None and save_every < dt * (1 - 1e-9):
+        warnings.warn(
+            f"save_every={save_every:g} s is shorter than the fixed dt={dt:g} s of "
+            f"'{case.name}': each save ends a step shortened to land on it, so the "
+            f"run steps by {save_every:g} s, not dt. Give save_every >= dt "
+            "(--save-every), or a dt that fits.",
+            stacklevel=2,
+        )
     plan = _plan(dt, t_end, save_every, t_now, chunk_saves, max_steps_per_save)
     done = int(np.asarray(state.step))
     label = f"{case.name} (t_end={t_end:g} s)" if progress else None

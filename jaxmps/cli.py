@@ -185,6 +185,9 @@ def _check_times(args) -> None:
         if value is not None and not (math.isfinite(value) and value > 0):
             flag = "--" + name.replace("_", "-")
             raise UsageError(f"{flag} must be positive and finite [s], got {value!r}.")
+    most = getattr(args, "max_steps_per_save", None)
+    if most is not None and not most >= 1:
+        raise UsageError(f"--max-steps-per-save must be at least 1, got {most!r}.")
 
 
 def _parse_vary(items: list[str]) -> dict:
@@ -292,7 +295,8 @@ def _cmd_sweep(args) -> int:
         )
         for m in failed:
             reached = m["t_reached"]
-            print(f"  {m['file']} {m['values']}: {m['result']} at t={reached:.4g} s")
+            values = ", ".join(f"{k}={float(v):g}" for k, v in m["values"].items())
+            print(f"  {m['file']} ({values}): {m['result']} at t={reached:.4g} s")
     return 1 if failed else 0
 
 
@@ -432,6 +436,12 @@ def _cmd_plot(args) -> int:
 
     from .io import read_run
 
+    if Path(args.file).is_dir() or Path(args.file).suffix == ".json":
+        raise UsageError(
+            f"'{args.file}' is a sweep's folder (or index), not a run file: plot "
+            "one member's file, e.g. `jaxmps plot FOLDER/member_000.h5` "
+            "(`jaxmps info FOLDER` lists them)."
+        )
     data = read_run(args.file)
     times = data.frames.get("time")
     if times is None or not len(times):
@@ -478,7 +488,12 @@ def _cmd_plot(args) -> int:
         plt.close(fig)
         raise UsageError(f"--out '{out}' is a directory; name an image file in it.")
     try:
+        out.parent.mkdir(parents=True, exist_ok=True)
         fig.savefig(out, bbox_inches="tight")
+    except OSError as e:
+        raise UsageError(
+            f"--out '{out}' cannot be written: {e.strerror or e}."
+        ) from None
     finally:
         plt.close(fig)
     print(f"Wrote {out}")

@@ -176,6 +176,7 @@ def _one_line_error(capsys, argv, code=2):
         (["--set", "spacing=1e-5"], r"asks for 4e\+08 particles.*raise `spacing`"),
         (["--set", "spacing"], "--set expects NAME=VALUE"),
         (["--set", "dim=2.5"], "expects a whole number"),
+        (["--max-steps-per-save", "-5"], "--max-steps-per-save must be at least 1"),
     ],
 )
 def test_run_refuses_on_one_line(tmp_path, capsys, argv, message):
@@ -203,6 +204,13 @@ def test_info_and_plot_of_bad_files(tmp_path, run_file, capsys):
     png.mkdir()
     err = _one_line_error(capsys, ["plot", str(run_file), "--out", str(png)])
     assert "is a directory" in err
+    sweep = tmp_path / "a_sweep"
+    sweep.mkdir()
+    err = _one_line_error(capsys, ["plot", str(sweep)])
+    assert "is a sweep's folder (or index), not a run file" in err
+    # A folder that does not exist yet is made, as `run` makes its --out's.
+    deep = tmp_path / "new" / "frame.png"
+    assert main(["plot", str(run_file), "--out", str(deep)]) == 0 and deep.exists()
 
 
 def test_a_platform_jax_cannot_start_is_one_line(tmp_path):

@@ -318,3 +318,11 @@ def test_the_run_ends_at_t_end(tmp_path, case):
             _run(case, None, t_end=bad)
         with pytest.raises(ValueError, match=r"save_every must be positive"):
             _run(case, None, save_every=bad)
+
+
+def test_saves_closer_than_a_fixed_step_are_warned_of(tmp_path):
+    fixed = jaxmps.scenes.hydrostatic(spacing=0.05, dt=1e-3)
+    assert fixed.scene.time_step is None
+    with pytest.warns(UserWarning, match=r"save_every=0.0005 s is shorter than the"):
+        result = jaxmps.run(fixed, t_end=2e-3, save_every=5e-4, progress=False)
+    assert int(result.state.step) == 4  # steps of the save interval, not of dt

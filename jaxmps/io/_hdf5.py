@@ -109,7 +109,8 @@ def _open_checked(path: str | os.PathLike, mode: str = "r") -> h5py.File:
         version = f.attrs.get("format_version")
         if version is None or int(version) > FORMAT_VERSION:
             raise ValueError(
-                f"'{path}' has format_version={version!r}; this jaxmps reads "
+                f"'{path}' has format_version="
+                f"{'none' if version is None else _decode(version)}; this jaxmps reads "
                 f"format_version <= {FORMAT_VERSION}."
             )
         for group in ("config", "particles", "frames", "probes"):
@@ -557,7 +558,9 @@ def load_state(path: str | os.PathLike, case: Any):
         if value.shape != like.shape:
             raise ValueError(
                 f"'{path}': {where} has shape {value.shape} but the case expects "
-                f"{tuple(like.shape)}: it is not a run of this case."
+                f"{tuple(like.shape)}: it is not a run of this case (a restart "
+                "keeps the settings that place the particles: spacing and the "
+                "geometry; change them in a new run)."
             )
         return jnp.asarray(value, dtype=like.dtype)
 
