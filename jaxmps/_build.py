@@ -93,7 +93,7 @@ def make_scene(
             scenes do, unless given `dt` in seconds).
 
     Returns:
-        The Scene, with n0 and lambda of the regular lattice (DESIGN.md §7).
+        The Scene, with n0 and lambda of the regular lattice.
     """
     position = np.asarray(position, dtype=np.float64)
     if position.ndim == 2 and not np.all(np.isfinite(position)):

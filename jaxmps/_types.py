@@ -26,7 +26,7 @@ PairVectors = tuple[Float[Array, "n k"], ...]
 class Kind(enum.IntEnum):
     """What a particle is. Stored per particle in `State.kind` (int32).
 
-    The integer values are part of the run-file contract (DESIGN.md §5).
+    The integer values are part of the run-file format (docs/architecture.md).
     """
 
     FLUID = 0

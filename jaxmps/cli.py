@@ -1,4 +1,4 @@
-"""The `jaxmps` command line (DESIGN.md §4): scenes, run, sweep, info, plot."""
+"""The `jaxmps` command line: scenes, run, sweep, info, plot."""
 
 import argparse
 import json

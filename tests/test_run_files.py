@@ -4,6 +4,7 @@ disk, SIGINT, SIGTERM) leaves a readable file with every frame written so far an
 the state to restart from."""
 
 import errno
+import json
 import os
 import re
 import signal
@@ -326,3 +327,19 @@ def test_saves_closer_than_a_fixed_step_are_warned_of(tmp_path):
     with pytest.warns(UserWarning, match=r"save_every=0.0005 s is shorter than the"):
         result = jaxmps.run(fixed, t_end=2e-3, save_every=5e-4, progress=False)
     assert int(result.state.step) == 4  # steps of the save interval, not of dt
+
+
+def test_a_restart_with_other_settings_keeps_the_ones_it_replaced(tmp_path, case):
+    dt = float(case.params.dt)
+    path = tmp_path / "run.h5"
+    _run(case, path, t_end=4 * dt)
+    thicker = jaxmps.scenes.hydrostatic(spacing=0.05, viscosity=1e-4)
+    _run(thicker, path, t_end=8 * dt, restart=True)
+    data = io.read_run(path)
+    assert data.config["viscosity"] == 1e-4
+    earlier = json.loads(data.attrs["earlier_configs"])
+    assert len(earlier) == 1 and earlier[0]["config"]["viscosity"] == 1e-6
+    assert earlier[0]["until_time"] == pytest.approx(4 * dt)
+    # A restart with the same settings adds nothing.
+    _run(thicker, path, t_end=10 * dt, restart=True)
+    assert len(json.loads(io.read_run(path).attrs["earlier_configs"])) == 1

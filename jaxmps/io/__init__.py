@@ -1,4 +1,5 @@
-"""Run files: HDF5 (DESIGN.md §5) with an XDMF sidecar for ParaView."""
+"""Run files: HDF5 (the layout in docs/architecture.md) with an XDMF sidecar for
+ParaView."""
 
 from ._hdf5 import FORMAT as FORMAT
 from ._hdf5 import FORMAT_VERSION as FORMAT_VERSION

@@ -1,4 +1,5 @@
-"""Run files: the HDF5 layout of DESIGN.md §5 and its XDMF sidecar for ParaView."""
+"""Run files: the HDF5 layout of docs/architecture.md ("Run files") and its XDMF
+sidecar for ParaView."""
 
 import dataclasses
 import json
@@ -195,10 +196,18 @@ class RunWriter:
                     f"{case.state.position.shape[0]}: it is not a run of this case."
                 )
             # The settings now in force (a restart may change them) are the ones a
-            # later restart continues with.
+            # later restart continues with; those they replace are kept, with
+            # the time from which they no longer held (`earlier_configs`).
             self.file.attrs["dt"] = self.dt
+            old, new = _decode(self.file["config"][()]), config_json(case.config)
+            if old != new:
+                state = self.file.get("state")
+                since = 0.0 if state is None else float(state["time"][()])
+                earlier = json.loads(self.file.attrs.get("earlier_configs", "[]"))
+                earlier.append({"until_time": since, "config": json.loads(old)})
+                self.file.attrs["earlier_configs"] = json.dumps(earlier)
             del self.file["config"]
-            self.file.create_dataset("config", data=config_json(case.config))
+            self.file.create_dataset("config", data=new)
             return
         self.path.parent.mkdir(parents=True, exist_ok=True)
         self.file = h5py.File(self.path, "w")

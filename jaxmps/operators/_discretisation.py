@@ -10,7 +10,7 @@ class Discretisation(eqx.Module):
 
     Static (Python numbers and a weight object); a Scene holds one
     (`Scene.discretisation`). Build it with `jaxmps.make_scene`, which derives n0
-    and lambda from the weight on the regular lattice (DESIGN.md §7).
+    and lambda from the weight on the regular lattice.
 
     Attributes:
         dim: spatial dimension (2 or 3); the last axis is vertical.

@@ -1,4 +1,4 @@
-"""Probes: jittable functions of the state that runs save over time (DESIGN.md §5)."""
+"""Probes: jittable functions of the state that runs save over time."""
 
 import abc
 import math
