@@ -2,6 +2,7 @@
 
 import contextlib
 import dataclasses
+import json
 import math
 import os
 import signal
@@ -511,9 +512,12 @@ def run(
     started = _time.perf_counter()
     out = None if out is None else Path(out)
     restart_from, append = _restart_source(out, restart, restart_from)
-    # A restart continues to the end its file was asked for, on its grid of saves.
+    # A restart continues to the end its file was asked for, on its grid of saves,
+    # unless the case names another end than the file's (a case built anew with
+    # its own t_end).
     asked = asked_times(restart_from)
-    t_end = asked.get("t_end", case.t_end) if t_end is None else t_end
+    if t_end is None:
+        t_end = resumed_end(case, restart_from) or case.t_end
     t_end = _seconds("t_end", t_end)
     if save_every is None:
         save_every = asked.get("save_every", t_end / 100)
@@ -602,18 +606,39 @@ def _ended(writer: RunWriter | None, status: str, message: str = "") -> None:
         pass
 
 
+def resumed_end(case: Case, path: Path | None) -> float | None:
+    """The t_end a restart from `path` continues to when none is given: the one
+    the file was asked for, if `case` is built with the file's own t_end setting
+    (None otherwise: the case's)."""
+    asked = asked_times(path)
+    built = asked.get("case_t_end")
+    if "t_end" in asked and built is not None:
+        if math.isclose(built, float(case.t_end)):
+            return asked["t_end"]
+    return None
+
+
 def asked_times(path: Path | None) -> dict[str, float]:
-    """The t_end and save_every a run file was asked for ({} for none, a file
+    """The t_end and save_every a run file was asked for, and the t_end of the
+    case it was built from (`case_t_end`, its /config's) ({} for none, a file
     that does not exist, or one written before they were recorded)."""
     if path is None or not Path(path).is_file():
         return {}
     try:
         with h5py.File(path, "r") as f:
-            return {
+            out = {
                 k: float(f.attrs[k]) for k in ("t_end", "save_every") if k in f.attrs
             }
+            config = f["config"][()] if "config" in f else None
     except OSError:
         return {}
+    try:
+        built = json.loads(config).get("t_end") if config is not None else None
+        if built is not None:
+            out["case_t_end"] = float(built)
+    except (TypeError, ValueError, AttributeError):
+        pass
+    return out
 
 
 def _warn_escaped(case: Case, state: State) -> None:

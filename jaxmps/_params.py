@@ -10,7 +10,8 @@ from jaxtyping import Array, Float
 from ._numerics import is_concrete
 
 # The values a Params field accepts (a field not listed must be finite):
-# "positive" or ">= 0", and finite.
+# "positive" or ">= 0", and finite; "in (0, 1]"; ">= 0 (inf: never)", a time
+# that may be infinite (a body held for good).
 VALUE_RULES = {
     "density": "positive",
     "dt": "positive",
@@ -22,7 +23,7 @@ VALUE_RULES = {
     "rigid.mu_static": ">= 0",
     "rigid.mu_kinetic": ">= 0",
     "rigid.gyration": "positive",
-    "rigid.release_time": ">= 0",
+    "rigid.release_time": ">= 0 (inf: never)",
     "elastic.youngs_modulus": "positive",
     "elastic.density": "positive",
     "elastic.mu_static": ">= 0",
@@ -35,7 +36,7 @@ VALUE_RULES = {
     "grains.stiffness": "positive",
     "grains.lift": ">= 0",
     "grains.rolling": ">= 0",
-    "grains.release_time": ">= 0",
+    "grains.release_time": ">= 0 (inf: never)",
 }
 
 
@@ -56,7 +57,9 @@ def _check_fields(module, prefix: str, where: str, nested: bool) -> None:
         array = np.asarray(value, dtype=float)
         rule = VALUE_RULES.get(name, "finite")
         good = np.isfinite(array)
-        if rule == "positive":
+        if rule == ">= 0 (inf: never)":  # held for good (a spin-up)
+            good = array >= 0
+        elif rule == "positive":
             good &= array > 0
         elif rule == ">= 0":
             good &= array >= 0
@@ -68,7 +71,7 @@ def _check_fields(module, prefix: str, where: str, nested: bool) -> None:
                 "finite"
                 if rule == "finite"
                 else f"{rule}"
-                if rule.startswith("in ")
+                if rule.startswith("in ") or "inf" in rule
                 else f"{rule} and finite"
             )
             raise ValueError(f"{where}Params.{name} must be {want}, got {shown}.")

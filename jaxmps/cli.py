@@ -98,7 +98,7 @@ def _cmd_run(args) -> int:
         raise UsageError(f"--restart: '{source}' does not exist.")
     _start_jax(args.x64)
     from . import scenes
-    from ._driver import asked_times, run
+    from ._driver import resumed_end, run
     from .io import read_run
 
     scene = args.scene or _DEFAULT_SCENE
@@ -113,9 +113,9 @@ def _cmd_run(args) -> int:
                 "--restart."
             )
         overrides = {**scenes.stored_settings(scene, data.config), **overrides}
-        if t_end is None:
-            t_end = asked_times(source).get("t_end")
     case = scenes.build(scene, **overrides)
+    if restart and t_end is None:
+        t_end = resumed_end(case, source)
     n = int(case.state.active.sum())
     dt = float(case.params.dt)
     steps = (
@@ -134,7 +134,7 @@ def _cmd_run(args) -> int:
             warnings.filterwarnings("ignore", message=".*left the domain")
             result = run(
                 case,
-                t_end=args.t_end,
+                t_end=t_end,
                 out=out,
                 save_every=args.save_every,
                 progress=not args.quiet,
