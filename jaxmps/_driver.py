@@ -512,32 +512,11 @@ def run(
     started = _time.perf_counter()
     out = None if out is None else Path(out)
     restart_from, append = _restart_source(out, restart, restart_from)
-    # A restart continues to the end its file was asked for, on its grid of saves,
-    # unless the case names another end than the file's (a case built anew with
-    # its own t_end).
-    asked = asked_times(restart_from)
-    if t_end is None:
-        t_end = resumed_end(case, restart_from) or case.t_end
-    t_end = _seconds("t_end", t_end)
-    if save_every is None:
-        save_every = asked.get("save_every", t_end / 100)
-    save_every = _seconds("save_every", save_every)
+    t_end, save_every = _run_times(case, t_end, save_every, restart_from)
     state = _starting_state(case, out, restart_from, append, overwrite)
     t_now = float(np.asarray(state.time))
-    if restart_from is not None and not t_end > t_now * (1 + 1e-9):
-        raise ValueError(
-            f"'{restart_from}' is already at t={t_now:.6g} s, at or past "
-            f"t_end={t_end:.6g} s: give a later t_end (--t-end) to continue it."
-        )
     dt = float(np.asarray(case.params.dt))
-    if case.scene.time_step is None and save_every < dt * (1 - 1e-9):
-        warnings.warn(
-            f"save_every={save_every:g} s is shorter than the fixed dt={dt:g} s of "
-            f"'{case.name}': each save ends a step shortened to land on it, so the "
-            f"run steps by {save_every:g} s, not dt. Give save_every >= dt "
-            "(--save-every), or a dt that fits.",
-            stacklevel=2,
-        )
+    _check_times_against(case, restart_from, t_now, t_end, save_every)
     plan = _plan(dt, t_end, save_every, t_now, chunk_saves, max_steps_per_save)
     done = int(np.asarray(state.step))
     label = f"{case.name} (t_end={t_end:g} s)" if progress else None
@@ -552,6 +531,41 @@ def run(
         n_steps=int(np.asarray(state.step)) - done,
         wall_time=_time.perf_counter() - started,
     )
+
+
+def _run_times(
+    case: Case, t_end: float | None, save_every: float | None, restart_from
+) -> tuple[float, float]:
+    """The run's t_end and save_every, checked. A restart continues to the end
+    its file was asked for, on its grid of saves, unless the case names another
+    end than the file's (a case built anew with its own t_end)."""
+    if t_end is None:
+        t_end = resumed_end(case, restart_from) or case.t_end
+    t_end = _seconds("t_end", t_end)
+    if save_every is None:
+        save_every = asked_times(restart_from).get("save_every", t_end / 100)
+    return t_end, _seconds("save_every", save_every)
+
+
+def _check_times_against(
+    case: Case, restart_from, t_now: float, t_end: float, save_every: float
+) -> None:
+    """Refuse a restart already at or past `t_end` (ValueError); warn of saves
+    closer than a fixed step."""
+    if restart_from is not None and not t_end > t_now * (1 + 1e-9):
+        raise ValueError(
+            f"'{restart_from}' is already at t={t_now:.6g} s, at or past "
+            f"t_end={t_end:.6g} s: give a later t_end (--t-end) to continue it."
+        )
+    dt = float(np.asarray(case.params.dt))
+    if case.scene.time_step is None and save_every < dt * (1 - 1e-9):
+        warnings.warn(
+            f"save_every={save_every:g} s is shorter than the fixed dt={dt:g} s of "
+            f"'{case.name}': each save ends a step shortened to land on it, so the "
+            f"run steps by {save_every:g} s, not dt. Give save_every >= dt "
+            "(--save-every), or a dt that fits.",
+            stacklevel=3,
+        )
 
 
 def _written(
