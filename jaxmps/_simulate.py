@@ -103,6 +103,7 @@ def simulate(
     throw: bool = True,
     checkpoint: bool | Literal["steps"] = True,
     batch_axis: str | None = None,
+    autodiff: Literal["reverse", "forward"] = "reverse",
 ) -> Trajectory:
     """Run `n_steps` steps, observing every `save_every` steps; or run to each of
     `times`, observing there.
@@ -151,6 +152,15 @@ def simulate(
             each step ("steps": least memory, slower gradient; it also searches for
             neighbours twice per step instead of carrying the lists), or nothing
             (False: most memory, memory ~ n_steps).
+        autodiff: how the rollout may be differentiated. "reverse" (default):
+            `jax.grad`, `jax.jacrev`, `jax.vjp`. "forward": `jax.jvp`,
+            `jax.jacfwd`, `jax.linearize`, with the memory of a run, whatever its
+            length: the derivative along one direction (one Params field, or a
+            few with `jacfwd`) costs about one more run's work, no checkpoints.
+            The steps are the same either way (equal results); only adaptive or
+            timed rollouts (a while loop per save) need the choice, and there a
+            forward-mode rollout cannot be reverse-differentiated (JAX refuses a
+            `lax.while_loop`). `checkpoint` applies to reverse mode only.
         batch_axis: when this call runs under `jax.vmap(..., axis_name=name)`,
             `name`: the members then decide together whether a step can use the
             neighbour lists carried from the previous one, which keeps that saving
@@ -177,8 +187,18 @@ def simulate(
         throw=throw,
         checkpoint=checkpoint,
         batch_axis=batch_axis,
+        autodiff=autodiff,
     )
-    return _simulate(*args, **kwargs)
+    try:
+        return _simulate(*args, **kwargs)
+    except TypeError as error:
+        if "forward-mode" not in str(error):
+            raise
+        raise TypeError(
+            "This rollout (adaptive time steps, or save `times`) is set up for "
+            "reverse-mode derivatives (jax.grad, jax.jacrev, jax.vjp); for forward "
+            "mode (jax.jvp, jax.jacfwd) call simulate(..., autodiff='forward')."
+        ) from None
 
 
 def _prepared(*args, **kwargs) -> tuple[tuple, dict]:
@@ -202,6 +222,11 @@ def _prepared(*args, **kwargs) -> tuple[tuple, dict]:
         a["max_steps"],
     )
     _check_checkpoint(a["checkpoint"])
+    if a["autodiff"] not in ("reverse", "forward"):
+        raise ValueError(
+            f"autodiff must be 'reverse' (jax.grad) or 'forward' (jax.jvp, "
+            f"jax.jacfwd), got {a['autodiff']!r}."
+        )
     if a["times"] is not None:
         a["times"] = jnp.asarray(a["times"], a["state"].time.dtype)
     positional = ("scene", "params", "state", "n_steps", "save_every", "observe")
@@ -378,11 +403,13 @@ def _advance(
     t_target: Float[Array, ""] | None,
     n_target: int | None,
     max_steps: int,
-    checkpoints: int,
+    checkpoints: int | None,
     batch_axis: str | None,
 ) -> tuple[State, StepHistory]:
     """Steps from `state` until its time reaches `t_target` (landing on it) or
-    `n_target` more steps are taken, in at most `max_steps` attempts."""
+    `n_target` more steps are taken, in at most `max_steps` attempts. A while
+    loop checkpointed for reverse mode, or with `checkpoints=None` a plain one
+    for forward mode."""
     adaptive = scene.time_step is not None
     inf = jnp.asarray(jnp.inf, state.time.dtype)
     last = None if n_target is None else state.step + n_target
@@ -440,14 +467,17 @@ def _advance(
 
     zero = jnp.asarray(0, jnp.int32)
     start = _Attempts(state, inf, zero, zero, zero, inf, -inf)
-    end = eqxi.while_loop(
-        going,
-        attempt,
-        start,
-        max_steps=max_steps,
-        kind="checkpointed",
-        checkpoints=checkpoints,
-    )
+    if checkpoints is None:
+        end = eqxi.while_loop(going, attempt, start, max_steps=max_steps, kind="lax")
+    else:
+        end = eqxi.while_loop(
+            going,
+            attempt,
+            start,
+            max_steps=max_steps,
+            kind="checkpointed",
+            checkpoints=checkpoints,
+        )
     final = end.state
     unfinished = end.attempts >= max_steps
     if t_target is not None:
@@ -482,7 +512,11 @@ def _simulate(
     throw: bool = True,
     checkpoint: bool | Literal["steps"] = True,
     batch_axis: str | None = None,
+    autodiff: Literal["reverse", "forward"] = "reverse",
 ) -> Trajectory:
+    if autodiff == "forward":
+        # Forward-mode tangents are carried along the steps: nothing to store.
+        checkpoint = False
     if times is None and scene.time_step is None:
         block = _fixed_block(scene, params, save_every, observe, checkpoint, batch_axis)
         xs, length = None, n_steps // save_every
@@ -496,7 +530,7 @@ def _simulate(
                 t_target,
                 save_every if times is None else None,
                 max_steps,
-                _CHECKPOINTS[checkpoint],
+                None if autodiff == "forward" else _CHECKPOINTS[checkpoint],
                 batch_axis,
             )
             return carry, (observe(scene, without_neighbour_lists(carry)), history)

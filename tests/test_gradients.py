@@ -259,3 +259,67 @@ def test_beta_gradient_is_exactly_zero_and_so_is_the_difference():
     up = _loss(scene, set_field(params, "beta", params.beta + 1e-6), state)
     down = _loss(scene, set_field(params, "beta", params.beta - 1e-6), state)
     assert float(up) == float(down)
+
+
+def _field_loss_over_time(value, field, scene, params, state, autodiff):
+    """`_field_loss`, with the saves at times (a while loop per save)."""
+    p = eqx.tree_at(lambda p: getattr(p, field), params, value)
+    final = jaxmps.simulate(
+        scene, p, state, times=[0.003, 0.006], throw=False, autodiff=autodiff
+    ).state
+    fluid = state.kind == 0
+    return jnp.sum(jnp.where(fluid, final.pressure, 0.0)) * 1e-3 + jnp.sum(
+        jnp.where(fluid[:, None], final.position, 0.0) ** 2
+    )
+
+
+@pytest.mark.slow
+def test_forward_mode_equals_reverse_mode_and_differences():
+    """`autodiff="forward"`: jax.jacfwd of an adaptive rollout saved at times (a
+    plain while loop per save) equals jax.grad of the checkpointed one and central
+    differences; the values are the same run's (to round-off: the two programs
+    are compiled apart). The default refuses forward mode
+    by name; a fixed-step rollout takes either mode as it is."""
+    scene, params, state = _setup()
+    adaptive = eqx.tree_at(
+        lambda s: s.time_step, scene, jaxmps.Adaptive(), is_leaf=lambda x: x is None
+    )
+    x0 = params.viscosity
+    args = ("viscosity", adaptive, params, state)
+
+    def both(v):
+        value = _field_loss_over_time(v, *args, "forward")
+        return value, value
+
+    jac, value_f = jax.jacfwd(both, has_aux=True)(x0)
+    value_r, rev = jax.value_and_grad(_field_loss_over_time)(x0, *args, "reverse")
+    assert float(value_f) == pytest.approx(float(value_r), rel=1e-13)
+    h = 1e-4 * x0
+    fd = (
+        _field_loss_over_time(x0 + h, *args, "reverse")
+        - _field_loss_over_time(x0 - h, *args, "reverse")
+    ) / (2 * h)
+    assert abs(float(fd)) > 0
+    assert float(jac) == pytest.approx(float(rev), rel=1e-9)
+    assert float(rev) == pytest.approx(float(fd), rel=1e-4)
+    # Fixed steps (nested scans): jax.jacfwd, a vmap of JVPs, through the pressure
+    # solve, whose iteration count must stay the primal's (unbatched).
+    fixed = ("viscosity", scene, params, state)
+    assert float(jax.jacfwd(_field_loss)(x0, *fixed)) == pytest.approx(
+        float(jax.grad(_field_loss)(x0, *fixed)), rel=1e-9
+    )
+
+
+def test_autodiff_settings_are_checked():
+    """An unknown mode is refused; forward mode through a rollout set up for
+    reverse mode says which setting to change (JAX's own error named a
+    custom_vjp)."""
+    scene, params, state = _setup()
+    with pytest.raises((ValueError, TypeError), match="autodiff"):
+        jaxmps.simulate(scene, params, state, 6, 3, autodiff="backward")
+    adaptive = eqx.tree_at(
+        lambda s: s.time_step, scene, jaxmps.Adaptive(), is_leaf=lambda x: x is None
+    )
+    args = ("viscosity", adaptive, params, state, "reverse")
+    with pytest.raises(TypeError, match="autodiff='forward'"):
+        jax.jacfwd(_field_loss_over_time)(params.viscosity, *args)

@@ -19,7 +19,7 @@ class SolveInfo(eqx.Module):
 
 
 def _pcg(matvec, b, x0, precondition, rtol, atol, max_iterations):
-    """Plain PCG loop; never differentiated (it runs inside custom_linear_solve)."""
+    """Plain PCG loop; never differentiated (`_solve` defines its derivative)."""
     b_norm = jnp.linalg.norm(b)
     tol = jnp.maximum(rtol * b_norm, atol)
     r0 = b - matvec(x0)
@@ -71,42 +71,76 @@ def solve_spd(
 ) -> tuple[Float[Array, " n"], SolveInfo]:
     """Solve A x = b for a symmetric positive definite matrix-free A.
 
-    Differentiated implicitly through `jax.lax.custom_linear_solve`: the backward pass
-    is one more CG solve with A (symmetric), never a backpropagation through the
-    iterations. Both the forward and the transposed solve normalise their right-hand
-    side by its largest entry before iterating and rescale afterwards, so that small
-    cotangents cannot underflow the float32 dot products (jax-ml/jax#40254); `rtol`
-    is therefore relative to ||b|| and `atol` applies to the normalised system.
+    Differentiated implicitly, in both modes: the tangent is the solve of
+    A dx = db - dA x (`jax.lax.custom_linear_solve`, which JAX transposes for
+    reverse mode into one more CG solve with A, symmetric), never a
+    differentiation through the iterations. Every solve normalises its
+    right-hand side by its largest entry before iterating and rescales
+    afterwards, so that small tangents and cotangents cannot underflow the
+    float32 dot products (jax-ml/jax#40254); `rtol` is therefore relative to
+    ||b|| and `atol` applies to the normalised system.
 
     `x0` (warm start) and `precondition` (z = M^-1 r for a symmetric positive
     definite M, or an array of inverse diagonal entries for Jacobi) only steer the
-    iteration and carry no gradient: build M from gradient-stopped values.
+    iteration and carry no derivative.
     """
     x0 = jax.lax.stop_gradient(x0)
     if not callable(precondition):
         inverse = jax.lax.stop_gradient(precondition)
         precondition = lambda r: inverse * r  # noqa: E731
+    # The closures become pytrees whose captured arrays are leaves, so that the
+    # custom derivative sees what A depends on.
+    operator = eqx.filter_closure_convert(matvec, b)
+    precondition = eqx.filter_closure_convert(precondition, b)
+    return _solve(operator, b, x0, precondition, rtol, atol, max_iterations)
 
-    def normalised(guess):
-        def solve(mv, rhs):
-            scale = jnp.max(jnp.abs(rhs))
-            safe = jnp.where(scale > 0, scale, 1.0)
-            start = guess / safe if guess is not None else jnp.zeros_like(rhs)
-            x, info = _pcg(
-                mv, rhs / safe, start, precondition, rtol, atol, max_iterations
-            )
-            return x * safe, info
 
-        return solve
-
-    # Choice: own 30-line PCG inside custom_linear_solve rather than lineax.CG, for the
-    # right-hand-side normalisation of both solves (lineax cannot scale the transposed
-    # solve) and a warm start used only by the forward solve.
-    return jax.lax.custom_linear_solve(
-        matvec,
-        b,
-        solve=normalised(x0),
-        transpose_solve=normalised(None),
-        symmetric=True,
-        has_aux=True,
+def _normalised_pcg(matvec, b, x0, precondition, rtol, atol, max_iterations):
+    """`_pcg` on b scaled by its largest entry (x0 alike), rescaled after."""
+    scale = jnp.max(jnp.abs(b))
+    safe = jnp.where(scale > 0, scale, 1.0)
+    x, info = _pcg(
+        matvec, b / safe, x0 / safe, precondition, rtol, atol, max_iterations
     )
+    return x * safe, info
+
+
+# Choice: a custom JVP around the solve, with `custom_linear_solve` only for the
+# tangent, rather than `custom_linear_solve(..., has_aux=True)` around it: JAX
+# batches a linear solve's aux outputs under `vmap` even when nothing it reads is
+# batched, so `jax.jacfwd` (a vmap of JVPs) saw the primal iteration count as
+# batched and refused the rollout. Own 30-line PCG rather than lineax.CG, for the
+# right-hand-side normalisation of every solve (lineax cannot scale the
+# transposed solve) and a warm start used only by the primal solve.
+@eqx.filter_custom_jvp
+def _solve(operator, b, x0, precondition, rtol, atol, max_iterations):
+    return _normalised_pcg(operator, b, x0, precondition, rtol, atol, max_iterations)
+
+
+@_solve.def_jvp
+def _solve_jvp(primals, tangents):
+    operator, b, x0, precondition, rtol, atol, max_iterations = primals
+    t_operator, t_b = tangents[:2]
+    x, info = _solve(*primals)
+    rhs = jnp.zeros_like(b) if t_b is None else t_b
+    if any(t is not None for t in jax.tree.leaves(t_operator, is_leaf=_is_none)):
+        _, a_dot_x = eqx.filter_jvp(lambda op: op(x), (operator,), (t_operator,))
+        rhs = rhs - a_dot_x
+
+    def tangent_solve(matvec, rhs):
+        zero = jnp.zeros_like(rhs)
+        args = (precondition, rtol, atol, max_iterations)
+        return _normalised_pcg(matvec, rhs, zero, *args)[0]
+
+    x_dot = jax.lax.custom_linear_solve(
+        operator,
+        rhs,
+        solve=tangent_solve,
+        transpose_solve=tangent_solve,
+        symmetric=True,
+    )
+    return (x, info), (x_dot, jax.tree.map(lambda _: None, info))
+
+
+def _is_none(t) -> bool:
+    return t is None
