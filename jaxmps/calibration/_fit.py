@@ -213,13 +213,15 @@ def calibrate(
     checkpoint: bool | Literal["steps"] = True,
     batch: dict[str, Any] | None = None,
     mesh: Any = None,
+    autodiff: Literal["reverse", "forward"] = "reverse",
 ) -> CalibrationResult:
     """Fit Params `fields` so that probe `probe` reproduces `curve` (or, with
     `batch`, each member's curve).
 
     The loss is `curve_loss` of the probe's saved time series; its gradient comes
-    from reverse mode through the whole (checkpointed) rollout. Each iteration is
-    one jitted value-and-gradient call plus an optax update.
+    from reverse mode through the whole (checkpointed) rollout, or with
+    `autodiff="forward"` from one forward-mode pass per fitted value. Each
+    iteration is one jitted value-and-gradient call plus an optax update.
 
     Args:
         case: a `jaxmps.scenes.Case` (its Params are the starting point).
@@ -243,6 +245,11 @@ def calibrate(
             their mean. The members run as one vmapped batch per device, split
             over the devices of `mesh` (default: all) as `sweep` splits them.
         mesh: a one-axis `jax.sharding.Mesh` for `batch` (default: all devices).
+        autodiff: "reverse" (default) or "forward", as for `simulate`: forward
+            mode costs a pass per fitted value (a per-body field counts each
+            body), with the memory of a run whatever the rollout's length; for one
+            or two values it is the cheaper (`benchmarks/forward_mode.py`).
+            `checkpoint` applies to reverse mode only.
 
     Returns:
         A `CalibrationResult`. If the rollout of an iterate fails (a
@@ -262,7 +269,9 @@ def calibrate(
     transforms, params = _starting_point(case, fields, probe, iterations, initial)
     _check_span(case, params, batch, curve, n_steps)
     optimiser = optax.adam(0.05) if optimiser is None else optimiser
-    loop = (n_steps, save_every, checkpoint)
+    if autodiff not in ("reverse", "forward"):
+        raise ValueError(f"autodiff must be 'reverse' or 'forward', got {autodiff!r}.")
+    loop = (n_steps, save_every, checkpoint, autodiff)
     if batch is None:
         value_and_grad = _single_value_and_grad(
             case, params, transforms, curve, probe, loop
@@ -305,8 +314,9 @@ def _with_values(params, member, transforms, u):
 
 
 def _rollout(case: Case, params, loop: tuple, batch_axis=None):
-    """The probes' rollout a loss reads: (n_steps, save_every, checkpoint) `loop`."""
-    n_steps, save_every, checkpoint = loop
+    """The probes' rollout a loss reads: (n_steps, save_every, checkpoint,
+    autodiff) `loop`."""
+    n_steps, save_every, checkpoint, autodiff = loop
     return simulate(
         case.scene,
         params,
@@ -317,7 +327,26 @@ def _rollout(case: Case, params, loop: tuple, batch_axis=None):
         throw=False,
         checkpoint=checkpoint,
         batch_axis=batch_axis,
+        autodiff=autodiff,
     )
+
+
+def _value_and_derivative(loss_fn, autodiff: str):
+    """`jax.value_and_grad(loss_fn, has_aux=True)` in either mode: in forward mode
+    a `jax.jacfwd` (one JVP per entry of the first argument) that carries the
+    value along as its aux."""
+    if autodiff == "reverse":
+        return jax.value_and_grad(loss_fn, has_aux=True)
+
+    def value_and_jacfwd(*args):
+        def both(*a):
+            value, aux = loss_fn(*a)
+            return value, (value, aux)
+
+        derivative, value_aux = jax.jacfwd(both, has_aux=True)(*args)
+        return value_aux, derivative
+
+    return value_and_jacfwd
 
 
 def _single_value_and_grad(case, params, transforms, curve, probe, loop):
@@ -328,7 +357,7 @@ def _single_value_and_grad(case, params, transforms, curve, probe, loop):
         loss = curve_loss(run.saved["time"], run.saved[probe], curve)
         return loss, result_code(run.result)
 
-    return eqx.filter_jit(jax.value_and_grad(loss_fn, has_aux=True))
+    return eqx.filter_jit(_value_and_derivative(loss_fn, loop[3]))
 
 
 def _starting_point(case: Case, fields, probe: str, iterations, initial):
@@ -511,7 +540,7 @@ def _batched_value_and_grad(case, params, transforms, batch, curves, probe, loop
         code = jnp.max(jnp.where(real, codes, 0))
         return jnp.sum(jnp.where(real, losses, 0.0)), code
 
-    grad_fn = eqx.filter_jit(jax.value_and_grad(share_loss, has_aux=True))
+    grad_fn = eqx.filter_jit(_value_and_derivative(share_loss, loop[3]))
     pieces = []
     for k, device in enumerate(devices):
         index = np.arange(k * share, (k + 1) * share)
