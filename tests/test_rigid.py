@@ -374,3 +374,23 @@ def test_restart_with_bodies_is_bit_exact(tmp_path):
         np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
     data = jaxmps.io.read_run(path)
     assert data.bodies["centre"].shape[0] == data.frames["time"].shape[0] == 11
+
+
+def test_tilted_water_over_bodies_of_any_height_builds():
+    """The tank over tilted water stands a fifth of the bodies' height above the
+    surface, rounded up to whole spacings: a stack 1.2 m high at l0 = 0.05 m made
+    it 0.24 m, and the scene was refused as "not a whole number of spacings"."""
+    case = jaxmps.scenes.block_stack(
+        block_size=0.3,
+        block_height=0.6,
+        base_width=1.0,
+        floor_length=1.5,
+        water_depth=1.5,
+        angle=20.0,
+    )
+    walls = np.asarray(case.state.position)[np.asarray(case.state.kind) != 0]
+    assert walls[:, 1].max() > 1.5 + 0.2 * 1.2
+    case = jaxmps.scenes.friction_tilt(
+        block_size=0.3, block_height=0.6, water_depth=1.0, angle=10.0, settle=0
+    )
+    assert int(np.asarray(case.state.active).sum()) > 0

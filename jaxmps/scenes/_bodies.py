@@ -471,7 +471,7 @@ def _tilted_water(c, solids, length, what, top):
     grid = geometry.block([0.0, 0.0], [length, surface], l0)
     near = np.min(np.linalg.norm(grid[:, None] - solids[None], axis=-1), axis=1)
     below = grid[:, 1] < depth + slope * (grid[:, 0] - centre)
-    return grid[(near > 0.5 * l0) & below], surface + 0.2 * top
+    return grid[(near > 0.5 * l0) & below], whole_above(surface + 0.2 * top, l0)
 
 
 def _floating_settle(c: dict, depth: float) -> float:
