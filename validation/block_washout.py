@@ -30,8 +30,11 @@ Each Delta H is one vmapped batch over the discharges (`jaxmps.sweep` over
 initial water and inflow boundary the others share; the spin-up evens that out).
 
 Run: PYTHONPATH=. python validation/block_washout.py [--spacing 0.0025]
-[--release 4] [--main 10] [--lowerings 0.02 0.04] [--discharges 0.006]
-(writes results/block_washout_<tag>_cpu.{json,md,png}).
+[--release 4] [--main 10] [--lowerings 0.02 0.04] [--discharges 0.006] [--merge]
+(writes results/block_washout_<tag>_cpu.{json,md,png}; with --merge the rows of
+that file run with the same settings are kept and only the missing (Delta H, q)
+cells are run, each on the case built for the largest q asked for, as in one
+batch).
 """
 
 import argparse
@@ -146,9 +149,16 @@ def serial(case, values, times):
     return _Runs(runs)
 
 
-def run_lowering(args, lowering: float) -> list[dict]:
-    """One Delta H: a batch over the discharges (one run when only one)."""
+def run_lowering(args, lowering: float, done=()) -> list[dict]:
+    """One Delta H: a batch over the discharges (one run when only one). The
+    case is built for the largest discharge asked for, so a member run alone
+    (the others in `done`, rows of an earlier run) starts as it would in the
+    batch."""
     q_max = max(args.discharges)
+    kept = [r for r in done if r["bed_lowering"] == lowering]
+    discharges = [q for q in args.discharges if all(r["discharge"] != q for r in kept)]
+    if not discharges:
+        return kept
     case = jaxmps.scenes.block_washout(
         spacing=args.spacing,
         discharge=q_max,
@@ -161,7 +171,7 @@ def run_lowering(args, lowering: float) -> list[dict]:
     times = np.round(
         np.arange(1, round((args.release + args.main) / args.every) + 1) * args.every, 9
     )
-    feeds = [jaxmps.scenes.critical_feed(case, q) for q in args.discharges]
+    feeds = [jaxmps.scenes.critical_feed(case, q) for q in discharges]
     start = time.perf_counter()
     values = {
         "inflow.velocity": np.array([u for u, _ in feeds]),
@@ -172,7 +182,7 @@ def run_lowering(args, lowering: float) -> list[dict]:
     length = float(case.config["block_length"])
     moved = displacements(case, out.saved)
     rows = []
-    for m, q in enumerate(args.discharges):
+    for m, q in enumerate(discharges):
         after = times - args.release
         gone = np.asarray(out.saved["blocks_out"])[m]
         at_classify = gone[np.argmin(np.abs(after - min(args.classify, args.main)))]
@@ -201,7 +211,7 @@ def run_lowering(args, lowering: float) -> list[dict]:
     for row in rows:
         row.update(
             wall_s=round(wall, 1),
-            members=len(args.discharges),
+            members=len(discharges),
             batch="serial" if args.serial else "sweep",
             particles=particles,
             slots=int(case.scene.capacity),
@@ -212,7 +222,21 @@ def run_lowering(args, lowering: float) -> list[dict]:
         f"(out {[r['blocks_out_end'] for r in rows]}), {wall:.0f} s",
         flush=True,
     )
-    return rows
+    return sorted(kept + rows, key=lambda r: r["discharge"])
+
+
+SAME_RUN = ("spacing", "release", "main", "classify", "every", "movable", "rolling")
+
+
+def earlier_rows(args, stem) -> list[dict]:
+    """With --merge, the rows of the results file already there whose run had
+    the same settings: those (Delta H, q) are not run again."""
+    path = stem.with_suffix(".json")
+    if not (args.merge and path.exists()):
+        return []
+    earlier = json.loads(path.read_text())
+    same = all(earlier["args"].get(k, 0.0) == getattr(args, k, 0.0) for k in SAME_RUN)
+    return earlier["rows"] if same else []
 
 
 def _bed_line(args) -> list[str]:
@@ -318,6 +342,11 @@ def main() -> None:
     parser.add_argument(
         "--replot", action="store_true", help="redraw the saved results' plot"
     )
+    parser.add_argument(
+        "--merge",
+        action="store_true",
+        help="keep the results file's rows of the same settings; run the rest",
+    )
     args = parser.parse_args()
     tag = args.tag or f"{args.spacing * 1e3:g}mm".replace(".", "p")
     tag += "_movable" * args.movable
@@ -330,7 +359,10 @@ def main() -> None:
         )
         return
     info = machine_info()
-    rows = [row for lowering in args.lowerings for row in run_lowering(args, lowering)]
+    done = earlier_rows(args, stem)
+    rows = [
+        row for lowering in args.lowerings for row in run_lowering(args, lowering, done)
+    ]
     stem.with_suffix(".json").write_text(
         json.dumps(dict(args=vars(args), machine=info, rows=rows), indent=1)
     )
