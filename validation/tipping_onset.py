@@ -13,9 +13,21 @@ in 3-D (l0 = 0.2 m). Then on another body: a block resting on a 3 m base block
 there the contact's face reaches to where the two lattices meet, half a spacing
 beyond the corner particles, so the solid's limit w / h is given beside.
 
-Run: python validation/tipping_onset.py  (writes results/tipping_onset_cpu.{json,md})
+With --water: the blocks on a base block again, in still water and dry side by
+side (a 1 m base on a 1.5 m floor, so that the tilted water stays in a small tank;
+water `--above` m over the stack's top at the block's middle). Whether water
+reaches under a block decides its limit: with the full buoyancy at its centroid
+the submerged weight tips it where the dry weight does, tan(theta) = w / h;
+without the pressure under its base (the scene's blocks rest lattice on lattice)
+the water's load on its top and sides holds it beyond. Either way it must not tip
+before the dry limit: that is what is asserted.
+
+Run: python validation/tipping_onset.py [--water] [--above 0.3]
+(writes results/tipping_onset_cpu.{json,md}, with --water
+results/tipping_onset_water_cpu.{json,md})
 """
 
+import argparse
 import json
 import pathlib
 import time
@@ -105,19 +117,23 @@ def run(name, dim, width, height, l0, ratios):
     ]
 
 
-def run_on_body(name, width, height, l0, ratios):
+def run_on_body(name, width, height, l0, ratios, water=None, base=3.0, floor=4.0):
+    """The block on a base block `base` m wide for each ratio; in still water
+    `water` m over the stack's top when given."""
     limit = (width - l0) / (height - l0)
     rows = []
     for r in ratios:
+        wet = {} if water is None else dict(water_depth=2 * height + water)
         case = jaxmps.scenes.block_stack(
             block_size=width,
             block_height=height,
-            base_width=3.0,
-            floor_length=4.0,
+            base_width=base,
+            floor_length=floor,
             spacing=l0,
             dt=0.001,
             mu_static=2.0,
             angle=float(np.degrees(np.arctan(limit * r))),
+            **wet,
         )
         n = round(T_ON_BODY / float(case.params.dt))
         start = time.perf_counter()
@@ -144,6 +160,8 @@ def run_on_body(name, width, height, l0, ratios):
                 solid_limit=width / height,
                 ratio=float(r),
                 tan=float(limit * r),
+                water_above=water,
+                particles=int(np.asarray(case.state.active).sum()),
                 tilt_at_release_deg=float(
                     tilt_angle(np.asarray(case.state.rigid.orientation)[1], 2)
                 ),
@@ -157,8 +175,69 @@ def run_on_body(name, width, height, l0, ratios):
     return rows
 
 
+# (name, width, height, spacing, ratios): in water and dry, on a 1 m base
+IN_WATER = (
+    ("square", 0.5, 0.5, 0.05, (0.9, 0.97, 1.03, 1.1, 1.2)),
+    ("tall", 0.3, 0.6, 0.05, (0.9, 0.97, 1.03, 1.1, 1.2)),
+)
+
+
+def main_water(above: float) -> None:
+    rows = [
+        row
+        for water in (above, None)
+        for case in IN_WATER
+        for row in run_on_body(*case, water=water, base=1.0, floor=1.5)
+    ]
+    out = dict(machine=machine_info(), mu=2.0, t_end=T_ON_BODY, rows=rows)
+    stem = HERE / "results" / "tipping_onset_water_cpu"
+    stem.with_suffix(".json").write_text(json.dumps(out, indent=1))
+    lines = [
+        "# Tipping onset of a block on a block, in still water and dry (float64, CPU)",
+        "",
+        "Script: `validation/tipping_onset.py --water`. `block_stack`: the block on "
+        f"a 1 m base block on a 1.5 m floor, l0 = 0.05 m, mu = 2, {T_ON_BODY} s "
+        "after the scene's settling; in water the surface is level under the "
+        f"tilted gravity, {above:g} m over the stack's top at the block's middle. "
+        "Limit: the particles' (width - l0) / (height - l0). Host: "
+        f"{out['machine'].get('cpu_model') or '?'}.",
+        "",
+        "| block | water | particles | tan(theta) / limit | tan(theta) | largest "
+        "tilt [deg] | travel [m] | toppled | result | wall [s] |",
+        "|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    for r in rows:
+        wet = "dry" if r["water_above"] is None else f"{r['water_above']:g} m over"
+        lines.append(
+            f"| {r['block']} {r['width']:g} x {r['height']:g} m | {wet} | "
+            f"{r['particles']} | {r['ratio']:g} | {r['tan']:.3f} | "
+            f"{r['largest_tilt_deg']:.2f} | {r['travel_m']:.4f} | "
+            f"{'yes' if r['toppled'] else 'no'} | {r['result']} | "
+            f"{r['wall_s']:.0f} |"
+        )
+    lines.append("")
+    for name, *_ in IN_WATER:
+        for water in (above, None):
+            sub = [r for r in rows if r["block"] == name and r["water_above"] == water]
+            stands = max([r["ratio"] for r in sub if not r["toppled"]], default=None)
+            tips = min([r["ratio"] for r in sub if r["toppled"]], default=None)
+            lines.append(
+                f"- {name}, {'dry' if water is None else 'in water'}: stands up to "
+                f"{stands} x the limit, topples from {tips} x"
+            )
+    stem.with_suffix(".md").write_text("\n".join(lines) + "\n")
+    print("\n".join(lines))
+
+
 def main():
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--water", action="store_true")
+    parser.add_argument("--above", type=float, default=0.3)
+    args = parser.parse_args()
     jax.config.update("jax_enable_x64", True)
+    if args.water:
+        main_water(args.above)
+        return
     rows = [row for case in CASES for row in run(*case)]
     on_body = [row for case in ON_BODY for row in run_on_body(*case)]
     out = dict(
