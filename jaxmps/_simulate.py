@@ -152,15 +152,11 @@ def simulate(
             each step ("steps": least memory, slower gradient; it also searches for
             neighbours twice per step instead of carrying the lists), or nothing
             (False: most memory, memory ~ n_steps).
-        autodiff: how the rollout may be differentiated. "reverse" (default):
-            `jax.grad`, `jax.jacrev`, `jax.vjp`. "forward": `jax.jvp`,
-            `jax.jacfwd`, `jax.linearize`, with the memory of a run, whatever its
-            length: the derivative along one direction (one Params field, or a
-            few with `jacfwd`) costs about one more run's work, no checkpoints.
-            The steps are the same either way (equal results); only adaptive or
-            timed rollouts (a while loop per save) need the choice, and there a
-            forward-mode rollout cannot be reverse-differentiated (JAX refuses a
-            `lax.while_loop`). `checkpoint` applies to reverse mode only.
+        autodiff: "reverse" (default: `jax.grad`, `jax.vjp`) or "forward"
+            (`jax.jvp`, `jax.jacfwd`: a run's memory whatever its length, about
+            one more run's work per direction, no checkpoints; such a rollout
+            cannot be reverse-differentiated). The steps are the same either
+            way; only adaptive or timed rollouts need the choice.
         batch_axis: when this call runs under `jax.vmap(..., axis_name=name)`,
             `name`: the members then decide together whether a step can use the
             neighbour lists carried from the previous one, which keeps that saving
@@ -189,6 +185,12 @@ def simulate(
         batch_axis=batch_axis,
         autodiff=autodiff,
     )
+    return _simulate_naming_the_mode(args, kwargs)
+
+
+def _simulate_naming_the_mode(args: tuple, kwargs: dict) -> Trajectory:
+    """`_simulate`, with JAX's refusal of forward mode through the checkpointed
+    while loop (it names a custom_vjp) turned into the setting to change."""
     try:
         return _simulate(*args, **kwargs)
     except TypeError as error:
@@ -222,11 +224,7 @@ def _prepared(*args, **kwargs) -> tuple[tuple, dict]:
         a["max_steps"],
     )
     _check_checkpoint(a["checkpoint"])
-    if a["autodiff"] not in ("reverse", "forward"):
-        raise ValueError(
-            f"autodiff must be 'reverse' (jax.grad) or 'forward' (jax.jvp, "
-            f"jax.jacfwd), got {a['autodiff']!r}."
-        )
+    check_autodiff(a["autodiff"])
     if a["times"] is not None:
         a["times"] = jnp.asarray(a["times"], a["state"].time.dtype)
     positional = ("scene", "params", "state", "n_steps", "save_every", "observe")
@@ -321,6 +319,15 @@ def _check_steps(n_steps: int, save_every: int | None) -> None:
     if save_every < 1 or n_steps < 1 or n_steps % save_every:
         raise ValueError(
             f"n_steps={n_steps} must be a positive multiple of save_every={save_every}."
+        )
+
+
+def check_autodiff(autodiff) -> None:
+    """`autodiff` is "reverse" or "forward" (ValueError naming it otherwise)."""
+    if autodiff not in ("reverse", "forward"):
+        raise ValueError(
+            f"autodiff must be 'reverse' (jax.grad) or 'forward' (jax.jvp, "
+            f"jax.jacfwd), got {autodiff!r}."
         )
 
 

@@ -15,7 +15,7 @@ import numpy as np
 
 from .._checks import check_compatible, check_values
 from .._result import Result, result_code, result_from_code
-from .._simulate import simulate
+from .._simulate import check_autodiff, simulate
 from ..scenes import Case, observe_probes
 from ._fields import get_field, set_field
 
@@ -237,19 +237,16 @@ def calibrate(
         tol: stop when the loss falls below `tol`.
         initial: optional starting values overriding the case's Params.
         progress: show a progress bar (tqdm).
-        checkpoint: as for `simulate`; "steps" for the least gradient memory (large
-            scenes or long rollouts), at ~1.2-1.6x the gradient time.
+        checkpoint: as for `simulate` ("steps": least memory, ~1.2-1.6x the time).
         batch: {Params field: (b,) values} of b experiments that share the fitted
             fields but differ in these (a forcing frequency, a slope, ...);
             `curve` is then a sequence of b Curves, one per member, and the loss
             their mean. The members run as one vmapped batch per device, split
             over the devices of `mesh` (default: all) as `sweep` splits them.
         mesh: a one-axis `jax.sharding.Mesh` for `batch` (default: all devices).
-        autodiff: "reverse" (default) or "forward", as for `simulate`: forward
-            mode costs a pass per fitted value (a per-body field counts each
-            body), with the memory of a run whatever the rollout's length; for one
-            or two values it is the cheaper (`benchmarks/forward_mode.py`).
-            `checkpoint` applies to reverse mode only.
+        autodiff: "reverse" (default) or "forward", as for `simulate`: a pass
+            per fitted value (each body's, for a per-body field) and a run's
+            memory; the cheaper for one or two values.
 
     Returns:
         A `CalibrationResult`. If the rollout of an iterate fails (a
@@ -269,17 +266,15 @@ def calibrate(
     transforms, params = _starting_point(case, fields, probe, iterations, initial)
     _check_span(case, params, batch, curve, n_steps)
     optimiser = optax.adam(0.05) if optimiser is None else optimiser
-    if autodiff not in ("reverse", "forward"):
-        raise ValueError(f"autodiff must be 'reverse' or 'forward', got {autodiff!r}.")
+    check_autodiff(autodiff)
     loop = (n_steps, save_every, checkpoint, autodiff)
-    if batch is None:
-        value_and_grad = _single_value_and_grad(
-            case, params, transforms, curve, probe, loop
-        )
-    else:
-        value_and_grad = _batched_value_and_grad(
+    value_and_grad = (
+        _single_value_and_grad(case, params, transforms, curve, probe, loop)
+        if batch is None
+        else _batched_value_and_grad(
             case, params, transforms, batch, curve, probe, loop, mesh
         )
+    )
     u = {name: t.inverse(get_field(params, name)) for name, t in transforms.items()}
     start = time.perf_counter()
     best, history, it, code, message, converged = _optimise(
