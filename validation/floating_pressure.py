@@ -21,7 +21,10 @@ along each wetted face:
 - 'face': the pressure on the face, extrapolated linearly from the box's first two
   layers (P = 1.5 P_1 - 0.5 P_2), over rho g (s - z_face);
 - 'water': the water's first two layers outside the bottom face (in bins of l0
-  along it), extrapolated linearly to the face, over rho g (s - z_face);
+  along it), extrapolated linearly to the face, over rho g (s - z_face); on the
+  side faces, the water's first two columns beside each (in bins of l0 of
+  height above the keel), extrapolated across to the face, over rho g (s - z),
+  z the mean height of the water in the bin;
 - 'probe': the scene's `pressure_keel` gauge (`BodyPressure`: the water within
   2 l0 of the bottom face's middle, 1.75 l0 either side, fitted linearly against
   the distance from the face and read there).
@@ -52,10 +55,13 @@ import jaxmps
 from jaxmps import Kind
 
 
-def observe(case, body, bins):
+def observe(case, body, bins, rows):
     """Per step: the probes, the box's particles' pressure and position, and, for
     the water under the keel, per bin of l0 along it and per layer of l0 below it,
-    the sums of pressure and of depth below the keel and the count."""
+    the sums of pressure and of depth below the keel and the count; beside each
+    side face, per bin of l0 of height above the keel and per column of l0 out
+    from the face, the sums of pressure, of distance from the face and of height,
+    and the count."""
     probes = jaxmps.scenes.observe_probes(case.probes)
     l0 = case.config["spacing"]
     half = 0.5 * case.config["box_width"]
@@ -75,6 +81,23 @@ def observe(case, body, bins):
         def sums(v):
             return jax.ops.segment_sum(jnp.where(take, v, 0.0), cell, 2 * bins + 1)[:-1]
 
+        # Beside the side faces: cell (side, height bin, column).
+        out_left = values["box_x"] - half - x
+        out_right = x - values["box_x"] - half
+        out = jnp.maximum(out_left, out_right)
+        right = out_right > out_left
+        column = jnp.floor(out / l0).astype(jnp.int32)
+        height = jnp.floor((z - keel) / l0).astype(jnp.int32)
+        beside = fluid & (column >= 0) & (column < 2) & (height >= 0) & (height < rows)
+        cell_b = jnp.where(
+            beside, (right.astype(jnp.int32) * rows + height) * 2 + column, 4 * rows
+        )
+
+        def sums_beside(v):
+            return jax.ops.segment_sum(jnp.where(beside, v, 0.0), cell_b, 4 * rows + 1)[
+                :-1
+            ]
+
         return {
             "probes": values,
             "body_p": state.pressure[body],
@@ -83,6 +106,10 @@ def observe(case, body, bins):
             "water_p": sums(state.pressure),
             "water_depth": sums(below),
             "water_n": sums(jnp.ones_like(below)),
+            "side_p": sums_beside(state.pressure),
+            "side_out": sums_beside(out),
+            "side_z": sums_beside(z),
+            "side_n": sums_beside(jnp.ones_like(out)),
         }
 
     return fn
@@ -109,6 +136,7 @@ def measure(spacing, ratio, solver, settle, window, scheme=None):
     rho_b_g = ratio * rho_g
     body = np.flatnonzero(np.asarray(case.state.rigid.body) >= 0)
     bins = round(c["box_width"] / l0)
+    side_bins = round(c["box_height"] / l0)
     n = round(settle / dt)
     start = time.perf_counter()
     first = jaxmps.simulate(case.scene, case.params, case.state, n, n)
@@ -120,7 +148,7 @@ def measure(spacing, ratio, solver, settle, window, scheme=None):
         first.state,
         round(window / dt),
         1,
-        observe=observe(case, body, bins),
+        observe=observe(case, body, bins, side_bins),
     )
     wall = time.perf_counter() - start
     s = jax.tree.map(lambda a: np.asarray(a).mean(axis=0), out.saved)
@@ -183,6 +211,27 @@ def measure(spacing, ratio, solver, settle, window, scheme=None):
             face = pm[0] - dm[0] * (pm[1] - pm[0]) / (dm[1] - dm[0])
             ratio_b = float(face / (rho_g * d_keel))
             water.append(dict(at=(b + 0.5) * l0, face_ratio=ratio_b))
+    # The water's first two columns beside each side face, extrapolated across.
+    sp, so = s["side_p"].reshape(2, side_bins, 2), s["side_out"].reshape(2, side_bins, 2)
+    sz, sn = s["side_z"].reshape(2, side_bins, 2), s["side_n"].reshape(2, side_bins, 2)
+    water_sides = []
+    for k, side in enumerate(("left", "right")):
+        for b in range(side_bins):
+            if not np.all(sn[k, b] > 0.5):
+                continue
+            pm, om = sp[k, b] / sn[k, b], so[k, b] / sn[k, b]
+            height = sz[k, b].sum() / sn[k, b].sum()
+            depth = surface - height
+            if depth < l0:
+                continue
+            face = pm[0] - om[0] * (pm[1] - pm[0]) / (om[1] - om[0])
+            water_sides.append(
+                dict(
+                    face=f"side {side}",
+                    at=float(depth),
+                    face_ratio=float(face / (rho_g * depth)),
+                )
+            )
     return dict(
         solver=solver,
         scheme=scheme or case.config.get("scheme", "standard"),
@@ -196,6 +245,7 @@ def measure(spacing, ratio, solver, settle, window, scheme=None):
         wall_s=wall,
         body=rows,
         water=water,
+        water_sides=water_sides,
     )
 
 
@@ -213,6 +263,9 @@ def summary(m):
             out[f"{face} {key}"] = (float(r.mean()), float(r.min()), float(r.max()))
     w = np.array([row["face_ratio"] for row in m["water"]])
     out["water face_ratio"] = (float(w.mean()), float(w.min()), float(w.max()))
+    w = np.array([row["face_ratio"] for row in m.get("water_sides", ())])
+    if len(w):
+        out["water side"] = (float(w.mean()), float(w.min()), float(w.max()))
     out["probe"] = (m["probe"],) * 3
     return out
 
@@ -224,6 +277,7 @@ LABELS = {
     "side centre": "side columns, at their centres",
     "side face_ratio": "side faces, from the box (two layers)",
     "water face_ratio": "bottom face, from the water (two layers)",
+    "water side": "side faces, from the water (two columns)",
     "probe": "`pressure_keel` gauge (the water at the keel's middle)",
 }
 
@@ -276,6 +330,14 @@ def markdown(results, info):
             "- water under the bottom: "
             + ", ".join(f"{w['face_ratio']:.3f}" for w in m["water"])
         )
+        if m.get("water_sides"):
+            lines.append(
+                "- water beside the sides (depth [m]: face): "
+                + ", ".join(
+                    f"{w['face'][5:]} {w['at']:.4f}: {w['face_ratio']:.3f}"
+                    for w in m["water_sides"]
+                )
+            )
         lines.append("")
     return "\n".join(lines) + "\n"
 
