@@ -38,10 +38,16 @@ whole section then dams the sea up towards its roof).
 A ship that reaches the quay's landward end falls off it and leaves the domain:
 the run stops there (its maximum velocity was reached before).
 
+Each group's trend is checked against the seed's in the results file's
+"Trends" section (per group and spacing: the numbers and whether the trend
+holds), and the ships' velocities are plotted against their displacement
+(results/NAME.png). `--report` rewrites both from the file's rows without
+running; `--check` then exits with status 1 if any trend does not hold.
+
 Run: python validation/tsunami_quay.py [--groups height draft gap building]
 [--spacing 0.5] [--t-end 25] [--save 0.1] [--every-step] [--fresh]
-[--labels LABEL ...] [--out NAME] (writes
-results/tsunami_quay_cpu.{json,md}, or NAME's, after each run, merging rows
+[--labels LABEL ...] [--out NAME] [--report] [--check] (writes
+results/tsunami_quay_cpu.{json,md,png}, or NAME's, after each run, merging rows
 run before; runs already there with the same settings are reused unless
 --fresh).
 """
@@ -331,6 +337,155 @@ def table(rows: list[dict]) -> str:
     return "\n".join(lines)
 
 
+VERDICT = {True: "holds", False: "**does not hold**", None: "not measured"}
+
+
+def _rising(r: dict) -> bool:
+    """The run's maximum velocity was its last sample: it may be higher still."""
+    return bool(r.get("max_at_end")) or r["time_of_max"] >= r["ended_s"] - 0.1
+
+
+def trends(rows: list[dict]) -> list[tuple[str, bool | None, str]]:
+    """Each group's trend against the seed's, per spacing: (title, holds, the
+    numbers); holds is None where the runs did not get far enough to tell. A
+    maximum that was still rising when its run stopped is marked (*): the trend
+    is read from it as it stands."""
+
+    def speeds(rs, key="max_drift_velocity"):
+        return ", ".join(
+            f"{r['label']} {r[key]:.2f}{' (*)' if _rising(r) else ''}" for r in rs
+        )
+
+    out = []
+    for spacing in sorted({r["spacing"] for r in rows}):
+        at = [r for r in rows if r["spacing"] == spacing]
+
+        def group(name, rs=at):
+            return [r for r in rs if r.get("group") == name]
+
+        for name in ("height", "height_ds"):
+            rs = sorted(group(name), key=lambda r: r["overrides"]["tsunami_height"])
+            if len(rs) >= 2:
+                u = [r["max_drift_velocity"] for r in rs]
+                out.append(
+                    (
+                        f"{name}, l0 {spacing} m: the maximum drift velocity grows"
+                        " with the tsunami height (seed 8.55 / 13.90 / 17.98 m/s)",
+                        bool(np.all(np.diff(u) > 0)),
+                        speeds(rs) + " m/s",
+                    )
+                )
+        for name in ("draft", "draft_long"):
+            rs = sorted(group(name), key=lambda r: r["overrides"]["ship_draft"])
+            if len(rs) >= 2:
+                d = [r["displacement_at_max"] for r in rs]
+                out.append(
+                    (
+                        f"{name}, l0 {spacing} m: a heavier ship reaches its maximum"
+                        " velocity after a shorter displacement (seed Tables 4.2-3..5)",
+                        bool(np.all(np.diff(d) < 0)),
+                        speeds(rs, "displacement_at_max") + " m",
+                    )
+                )
+        for name in ("gap", "gap_long"):
+            rs = group(name)
+            if len(rs) >= 2:
+                u = [r["max_drift_velocity"] for r in rs]
+                front = [r["overrides"]["ship_gap"] for r in rs]
+                out.append(
+                    (
+                        f"{name}, l0 {spacing} m: the ship on the run-up front (2 m"
+                        " off the quay) drifts fastest (seed §4.3)",
+                        bool(front[int(np.argmax(u))] == min(front)),
+                        speeds(rs) + " m/s",
+                    )
+                )
+        for name in ("building", "building3d"):
+            rs = {r["overrides"].get("ship", True): r for r in group(name)}
+            if True in rs and False in rs and "building_impulse" in rs[True]:
+                title = (
+                    f"{name}, l0 {spacing} m: the building's impulse with the ship"
+                    " exceeds the tsunami's alone (seed: up to about 4x)"
+                )
+                alone = rs[False]["building_impulse"]
+                if alone > 0:
+                    ratio = rs[True]["building_impulse"] / alone
+                    out.append((title, bool(ratio > 1), f"ratio {ratio:.2f}"))
+                else:
+                    stopped = " / ".join(
+                        f"{r['ended_s']:.1f} s ({r['result']})" for r in rs.values()
+                    )
+                    out.append(
+                        (title, None, f"no impulse yet: the runs stopped at {stopped}")
+                    )
+        rs = [r for r in group("body") if "building_peak_force" in r]
+        by = {}
+        for r in rs:
+            by.setdefault(r["overrides"]["ship_body"], {})[r["overrides"]["dt_max"]] = r
+        if set(by) == {"rigid", "elastic"} and set(by["rigid"]) == set(by["elastic"]):
+            steps = sorted(by["rigid"])
+
+            def peak(r):
+                w = r.get("building_window_peaks")
+                return r["building_peak_force"] if w is None else w[f"{WINDOWS[0]:g}"]
+
+            rigid = [peak(by["rigid"][dt]) for dt in steps]
+            elastic = [peak(by["elastic"][dt]) for dt in steps]
+            spread = [max(v) / min(v) for v in (rigid, elastic)]
+            out.append(
+                (
+                    f"body, l0 {spacing} m: the elastic ship's peak force on the"
+                    " building is lower than the rigid one's at every step and"
+                    " moves less with the step (seed 000 §5)",
+                    bool(np.all(np.array(elastic) < rigid) and spread[1] < spread[0]),
+                    "dt_max "
+                    + " / ".join(f"{dt * 1e3:.2f}" for dt in steps)
+                    + " ms: rigid "
+                    + " / ".join(f"{v / 1e3:.0f}" for v in rigid)
+                    + ", elastic "
+                    + " / ".join(f"{v / 1e3:.0f}" for v in elastic)
+                    + f" kN/m (max/min {spread[0]:.2f} / {spread[1]:.2f})",
+                )
+            )
+    return out
+
+
+def plot(rows: list[dict], path) -> None:
+    """Each group's ships: velocity against displacement, one panel per group
+    and spacing."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    panels = sorted(
+        {(r.get("group", "?"), r["spacing"]) for r in rows if "series" in r}
+    )
+    if not panels:
+        return
+    cols = min(3, len(panels))
+    fig, axes = plt.subplots(
+        -(-len(panels) // cols),
+        cols,
+        figsize=(4.5 * cols, 3.4 * -(-len(panels) // cols)),
+        squeeze=False,
+    )
+    for ax, (name, spacing) in zip(axes.flat, panels):
+        for r in rows:
+            if r.get("group") == name and r["spacing"] == spacing and "series" in r:
+                x = np.asarray(r["series"]["ship_x"])
+                ax.plot(x - x[0], r["series"]["ship_u"], label=r["label"], lw=1)
+        ax.set_title(f"{name}, l0 = {spacing} m", fontsize=9)
+        ax.set_xlabel("ship displacement [m]")
+        ax.set_ylabel("ship velocity [m/s]")
+        ax.legend(fontsize=7)
+    for ax in list(axes.flat)[len(panels) :]:
+        ax.axis("off")
+    fig.tight_layout()
+    fig.savefig(path.with_suffix(".png"), dpi=100)
+    plt.close(fig)
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--groups", nargs="+", default=["height", "draft"])
@@ -347,11 +502,28 @@ def main():
         "--labels", nargs="+", default=None, help="only these runs of the groups"
     )
     parser.add_argument("--out", default="tsunami_quay_cpu", help="results name")
+    parser.add_argument(
+        "--report",
+        action="store_true",
+        help="rewrite the results table, trends and plot from the file; run nothing",
+    )
+    parser.add_argument(
+        "--check",
+        action="store_true",
+        help="with --report: exit with status 1 if any trend does not hold",
+    )
     args = parser.parse_args()
     path = HERE / "results" / args.out
     old = []
     if path.with_suffix(".json").exists():
         old = json.loads(path.with_suffix(".json").read_text())["rows"]
+    if args.report:
+        stored = json.loads(path.with_suffix(".json").read_text())
+        write(path, old, [], args, info=stored["machine"])
+        failed = [title for title, holds, _ in trends(old) if holds is False]
+        for title in failed:
+            print(f"does not hold: {title}")
+        raise SystemExit(1 if args.check and failed else 0)
     rows = []
     # Runs already in the file at this spacing and end time are reused (--fresh:
     # run them again).
@@ -384,19 +556,29 @@ def main():
             write(path, old, rows, args)
 
 
-def write(path, old: list[dict], rows: list[dict], args) -> None:
-    """The results so far, merged with the file's rows not re-measured."""
+def write(path, old: list[dict], rows: list[dict], args, info=None) -> None:
+    """The results so far, merged with the file's rows not re-measured. With
+    `info` (the machine the file's rows were measured on) only the report is
+    rewritten, not the rows."""
     done = {(r["label"], r["spacing"]) for r in rows}
     rows = [r for r in old if (r["label"], r["spacing"]) not in done] + rows
-    info = machine_info()
-    path.with_suffix(".json").write_text(
-        json.dumps({"machine": info, "args": vars(args), "rows": rows}, indent=1)
+    if info is None:
+        info = machine_info()
+        path.with_suffix(".json").write_text(
+            json.dumps({"machine": info, "args": vars(args), "rows": rows}, indent=1)
+        )
+    checks = "\n".join(
+        f"- {VERDICT[holds]}: {title}. {numbers}."
+        for title, holds, numbers in trends(rows)
     )
     path.with_suffix(".md").write_text(
         "# Tsunami over a quay carrying a ship: seed 000's trends (prototype "
         "scale; forces per metre in 2-D, N in 3-D)\n\n"
-        f"Machine: {info}\n\n" + table(rows) + "\n"
+        f"Machine: {info}\n\n" + table(rows) + "\n\n## Trends\n\n"
+        "(*): the run's last sample; the ship was still speeding up when it "
+        "stopped.\n\n" + checks + "\n"
     )
+    plot(rows, path)
 
 
 if __name__ == "__main__":
