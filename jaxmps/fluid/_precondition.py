@@ -276,24 +276,42 @@ class Multigrid(AbstractPreconditioner):
     coefficients (each added to its cell and neighbour-cell offset, `_cell_stencil`).
     Coarser levels halve the cell grid (every axis longer than 2) with the same
     Galerkin product, down to at most `coarsest_cells` cells, which are solved by
-    a dense Cholesky factorisation. Every level smooths with one damped-Jacobi
-    sweep before and one after its coarse correction, so the V-cycle is
-    symmetric; it is positive definite while `correction` < 2.
+    a dense Cholesky factorisation. Every cell level smooths with one
+    damped-Jacobi sweep before and one after its coarse correction, so the
+    V-cycle is symmetric; it is positive definite while `correction` < 2.
+
+    The particles' own level (`fine`) is either added to the cell hierarchy's
+    correction, z = D^-1 r + P C P^T r with C the cells' V-cycle ("additive",
+    the default: no product with the particle matrix inside the cycle), or
+    smoothed around it like the cell levels ("multiplicative": a Jacobi sweep,
+    the residual, the correction, and a second sweep, i.e. two products with
+    the particle matrix per application). Measured on pressure systems captured
+    from runs (one core, float64 unless said, whole solves to the default
+    tolerance): the additive form takes 1.4-1.9x the iterations and each costs
+    about half (the particle products are most of a multiplicative cycle), so
+    the solves are 15-25 % faster: the 2-D dam break in motion at 6.8k / 25k
+    particles 19 -> 29 / 22 -> 32 iterations, 14.9 -> 11.8 / 57.5 -> 44.6 ms;
+    25k in float32 19 -> 27, 36.0 -> 28.8 ms; a sloshing tank 14 -> 21, 2.7 ->
+    2.0 ms; the 3-D dam break 18 -> 26, 1.20 -> 0.90 s (benchmarks/NOTES.md
+    §25).
 
     All of it is built once per pressure solve, from the matrix of that solve, and
     carries no gradient (the implicit adjoint solve uses it as it is).
 
-    Measured in the 2-D dam break (benchmarks/NOTES.md §3), mean CG iterations
-    per step against Jacobi, float64 to rtol 1e-9: 247 -> 22.5 at 7k particles,
-    474 -> 28.5 at 25k; float32 to rtol 1e-5: 9 at 1k to 18 at 98k (Jacobi 48 to
-    508).
+    Measured in the 2-D dam break with the multiplicative particle level
+    (benchmarks/NOTES.md §3), mean CG iterations per step against Jacobi, float64
+    to rtol 1e-9: 247 -> 22.5 at 7k particles, 474 -> 28.5 at 25k; float32 to
+    rtol 1e-5: 9 at 1k to 18 at 98k (Jacobi 48 to 508).
 
     Attributes:
-        omega: Jacobi damping of the smoother.
+        omega: Jacobi damping of the cell levels' smoother (and of the
+            particles' with `fine="multiplicative"`).
         correction: over-correction factor of the (unsmoothed) coarse correction;
             aggregation with piecewise-constant P underestimates the smooth error,
             and 1.5-1.8 halves the iterations against 1.
         coarsest_cells: largest cell count solved directly.
+        fine: how the particles' level joins the cells' correction,
+            "additive" or "multiplicative" (above).
         single_precision: build and apply the V-cycle in float32 when the system
             is float64 (its result is cast back). The cycle is then symmetric only
             to round-off, which the Polak-Ribiere form of the CG absorbs (one more
@@ -305,6 +323,7 @@ class Multigrid(AbstractPreconditioner):
     correction: float = 1.5
     coarsest_cells: int = 64
     single_precision: bool = True
+    fine: str = "additive"
 
     def __check_init__(self):
         if not 0 < self.omega <= 1:
@@ -315,6 +334,11 @@ class Multigrid(AbstractPreconditioner):
             )
         if self.coarsest_cells < 1:
             raise ValueError("Multigrid.coarsest_cells must be at least 1.")
+        if self.fine not in ("additive", "multiplicative"):
+            raise ValueError(
+                "Multigrid.fine must be 'additive' or 'multiplicative', got "
+                f"{self.fine!r}."
+            )
 
     def layout(self, grid: Grid, disc: Discretisation):
         """Static: (origin, cell edge, padded shapes per level, halving factors)."""
@@ -380,6 +404,16 @@ class Multigrid(AbstractPreconditioner):
             return x + omega * inverse[level] * (r - _stencil_apply(c, x, radius))
 
         inverse_0 = jnp.where(in_system, system.inverse_diagonal, 0.0)
+
+        def add(r):
+            r_s = jnp.where(in_system, r, 0.0)
+            coarse_r = jnp.zeros(n1, r.dtype).at[flat].add(r_s)
+            e = materialised(cycle(0, coarse_r.reshape(shape)).reshape(-1))
+            x = inverse_0 * r_s + jnp.where(in_system, jnp.take(e, flat), 0.0)
+            return jnp.where(in_system, x, r)
+
+        if self.fine == "additive":
+            return add
 
         def apply(r):
             r_s = jnp.where(in_system, r, 0.0)
