@@ -122,6 +122,62 @@ def _columns(values, keys, l0):
     return {int(b): float(values[bins == b].mean()) for b in np.unique(bins)}
 
 
+def _side_rows(p, z, rx, rz, lo, hi, surface, l0, rho_g):
+    """The side faces: the box's two outer columns (time means per particle, `rx`
+    and `rz` its place in the body), below the water line's layer and above the
+    keel's, extrapolated to the face."""
+    rows = []
+    corner = int(np.floor(lo[-1] / l0 + 0.25))
+    for side, edge, step in (("left", lo[0], l0), ("right", hi[0], -l0)):
+        col1 = np.isclose(rx, edge)
+        col2 = np.isclose(rx, edge + step)
+        q1, q2 = _columns(p[col1], rz[col1], l0), _columns(p[col2], rz[col2], l0)
+        heights = _columns(z[col1], rz[col1], l0)
+        for b, pb in q1.items():
+            depth = surface - heights[b]
+            if depth < l0 or b == corner:
+                continue
+            face = 1.5 * pb - 0.5 * q2[b] if b in q2 else pb
+            rows.append(
+                dict(
+                    face=f"side {side}",
+                    at=float(depth),
+                    centre=pb / (rho_g * depth),
+                    interface=None,
+                    face_ratio=face / (rho_g * depth),
+                )
+            )
+    return rows
+
+
+def _water_sides(s, side_bins, surface, l0, rho_g):
+    """The water's first two columns beside each side face (time means of the
+    observer's sums), extrapolated across to the face, per bin of height."""
+    sp, so = (
+        s["side_p"].reshape(2, side_bins, 2),
+        s["side_out"].reshape(2, side_bins, 2),
+    )
+    sz, sn = s["side_z"].reshape(2, side_bins, 2), s["side_n"].reshape(2, side_bins, 2)
+    rows = []
+    for k, side in enumerate(("left", "right")):
+        for b in range(side_bins):
+            if not np.all(sn[k, b] > 0.5):
+                continue
+            pm, om = sp[k, b] / sn[k, b], so[k, b] / sn[k, b]
+            depth = surface - sz[k, b].sum() / sn[k, b].sum()
+            if depth < l0:
+                continue
+            face = pm[0] - om[0] * (pm[1] - pm[0]) / (om[1] - om[0])
+            rows.append(
+                dict(
+                    face=f"side {side}",
+                    at=float(depth),
+                    face_ratio=float(face / (rho_g * depth)),
+                )
+            )
+    return rows
+
+
 def measure(spacing, ratio, solver, settle, window, scheme=None):
     settings = {} if scheme is None else {"scheme": scheme}
     case = jaxmps.scenes.floating_box(
@@ -179,27 +235,7 @@ def measure(spacing, ratio, solver, settle, window, scheme=None):
                 face_ratio=face / (rho_g * d_keel),
             )
         )
-    # Side faces: the box's rows, below the water line's layer and above the keel's.
-    corner = int(np.floor(lo[-1] / l0 + 0.25))
-    for side, edge, step in (("left", lo[0], l0), ("right", hi[0], -l0)):
-        col1 = np.isclose(rx, edge)
-        col2 = np.isclose(rx, edge + step)
-        q1, q2 = _columns(p[col1], rz[col1], l0), _columns(p[col2], rz[col2], l0)
-        heights = _columns(z[col1], rz[col1], l0)
-        for b, pb in q1.items():
-            depth = surface - heights[b]
-            if depth < l0 or b == corner:
-                continue
-            face = 1.5 * pb - 0.5 * q2[b] if b in q2 else pb
-            rows.append(
-                dict(
-                    face=f"side {side}",
-                    at=float(depth),
-                    centre=pb / (rho_g * depth),
-                    interface=None,
-                    face_ratio=face / (rho_g * depth),
-                )
-            )
+    rows += _side_rows(p, z, rx, rz, lo, hi, surface, l0, rho_g)
     # The water's first two layers under the keel, extrapolated to it, per bin.
     wp = s["water_p"].reshape(bins, 2)
     wd = s["water_depth"].reshape(bins, 2)
@@ -211,27 +247,7 @@ def measure(spacing, ratio, solver, settle, window, scheme=None):
             face = pm[0] - dm[0] * (pm[1] - pm[0]) / (dm[1] - dm[0])
             ratio_b = float(face / (rho_g * d_keel))
             water.append(dict(at=(b + 0.5) * l0, face_ratio=ratio_b))
-    # The water's first two columns beside each side face, extrapolated across.
-    sp, so = s["side_p"].reshape(2, side_bins, 2), s["side_out"].reshape(2, side_bins, 2)
-    sz, sn = s["side_z"].reshape(2, side_bins, 2), s["side_n"].reshape(2, side_bins, 2)
-    water_sides = []
-    for k, side in enumerate(("left", "right")):
-        for b in range(side_bins):
-            if not np.all(sn[k, b] > 0.5):
-                continue
-            pm, om = sp[k, b] / sn[k, b], so[k, b] / sn[k, b]
-            height = sz[k, b].sum() / sn[k, b].sum()
-            depth = surface - height
-            if depth < l0:
-                continue
-            face = pm[0] - om[0] * (pm[1] - pm[0]) / (om[1] - om[0])
-            water_sides.append(
-                dict(
-                    face=f"side {side}",
-                    at=float(depth),
-                    face_ratio=float(face / (rho_g * depth)),
-                )
-            )
+    water_sides = _water_sides(s, side_bins, surface, l0, rho_g)
     return dict(
         solver=solver,
         scheme=scheme or case.config.get("scheme", "standard"),

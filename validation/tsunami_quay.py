@@ -345,6 +345,41 @@ def _rising(r: dict) -> bool:
     return bool(r.get("max_at_end")) or r["time_of_max"] >= r["ended_s"] - 0.1
 
 
+def _body_trend(rows: list[dict], spacing: float) -> list[tuple[str, bool, str]]:
+    """The body group's trend (`trends`): rigid against elastic ship at the
+    building, at each of the same largest steps."""
+    by = {}
+    for r in rows:
+        if "building_peak_force" in r:
+            by.setdefault(r["overrides"]["ship_body"], {})[r["overrides"]["dt_max"]] = r
+    if set(by) != {"rigid", "elastic"} or set(by["rigid"]) != set(by["elastic"]):
+        return []
+    steps = sorted(by["rigid"])
+
+    def peak(r):
+        w = r.get("building_window_peaks")
+        return r["building_peak_force"] if w is None else w[f"{WINDOWS[0]:g}"]
+
+    rigid = [peak(by["rigid"][dt]) for dt in steps]
+    elastic = [peak(by["elastic"][dt]) for dt in steps]
+    spread = [max(v) / min(v) for v in (rigid, elastic)]
+    return [
+        (
+            f"body, l0 {spacing} m: the elastic ship's peak force on the"
+            " building is lower than the rigid one's at every step and"
+            " moves less with the step (seed 000 §5)",
+            bool(np.all(np.array(elastic) < rigid) and spread[1] < spread[0]),
+            "dt_max "
+            + " / ".join(f"{dt * 1e3:.2f}" for dt in steps)
+            + " ms: rigid "
+            + " / ".join(f"{v / 1e3:.0f}" for v in rigid)
+            + ", elastic "
+            + " / ".join(f"{v / 1e3:.0f}" for v in elastic)
+            + f" kN/m (max/min {spread[0]:.2f} / {spread[1]:.2f})",
+        )
+    ]
+
+
 def trends(rows: list[dict]) -> list[tuple[str, bool | None, str]]:
     """Each group's trend against the seed's, per spacing: (title, holds, the
     numbers); holds is None where the runs did not get far enough to tell. A
@@ -418,35 +453,7 @@ def trends(rows: list[dict]) -> list[tuple[str, bool | None, str]]:
                     out.append(
                         (title, None, f"no impulse yet: the runs stopped at {stopped}")
                     )
-        rs = [r for r in group("body") if "building_peak_force" in r]
-        by = {}
-        for r in rs:
-            by.setdefault(r["overrides"]["ship_body"], {})[r["overrides"]["dt_max"]] = r
-        if set(by) == {"rigid", "elastic"} and set(by["rigid"]) == set(by["elastic"]):
-            steps = sorted(by["rigid"])
-
-            def peak(r):
-                w = r.get("building_window_peaks")
-                return r["building_peak_force"] if w is None else w[f"{WINDOWS[0]:g}"]
-
-            rigid = [peak(by["rigid"][dt]) for dt in steps]
-            elastic = [peak(by["elastic"][dt]) for dt in steps]
-            spread = [max(v) / min(v) for v in (rigid, elastic)]
-            out.append(
-                (
-                    f"body, l0 {spacing} m: the elastic ship's peak force on the"
-                    " building is lower than the rigid one's at every step and"
-                    " moves less with the step (seed 000 §5)",
-                    bool(np.all(np.array(elastic) < rigid) and spread[1] < spread[0]),
-                    "dt_max "
-                    + " / ".join(f"{dt * 1e3:.2f}" for dt in steps)
-                    + " ms: rigid "
-                    + " / ".join(f"{v / 1e3:.0f}" for v in rigid)
-                    + ", elastic "
-                    + " / ".join(f"{v / 1e3:.0f}" for v in elastic)
-                    + f" kN/m (max/min {spread[0]:.2f} / {spread[1]:.2f})",
-                )
-            )
+        out += _body_trend(group("body"), spacing)
     return out
 
 
