@@ -678,14 +678,17 @@ def test_a_block_slides_on_another_in_3d_with_the_whole_normal_force():
 
 @pytest.mark.slow
 def test_block_in_still_water_sticks_and_slides_with_its_submerged_weight():
-    """Seed 002 T10: a block of 1.5 x the water's density on a slope of
-    tan(theta) = 0.5 in still water, with the submerged-weight normal force
-    (M - rho V) g cos(theta): it stays with mu = 0.55 (tan = 0.91 mu) and slides
-    with mu = 0.25. Its acceleration is the formula's (W / M)(sin - mu cos) g
-    only without the water's added mass, which the slide without friction
-    measures (here about 2.3 rho V: the block drags the water over it), so the
-    acceleration is asserted relative to that slide: (sin - mu cos) / sin, within
-    15 % over 0.3 s (measured 3-8 % short)."""
+    """Seed 002 T10: a 1 m square block of 1.5 x the water's density on a slope
+    of tan(theta) = 0.5 in still water (1.5 m deep at the block, a 3 m tank),
+    with the submerged-weight normal force (M - rho V) g cos(theta): it stays
+    with mu = 0.55 (tan = 0.91 mu) and slides with mu = 0 and 0.25. The seed's
+    acceleration (W / M)(sin - mu cos) g leaves out the water the block pushes
+    aside; linear potential flow of this tank (validation/_slide_theory.py: the
+    added mass at the release, 2.66 rho V, and the free surface's rise after it)
+    gives travels of 22.66 and 11.33 mm over 0.3 s (the seed's formula: 65.8 and
+    32.9). Asserted within T10's 10 %: measured 23.69 and 10.91 mm (1.046,
+    0.963; 1.03-1.09 at l0 = 0.05 and 0.025 m and with `standard_ds`,
+    validation/slide_in_water.py)."""
     theta = math.atan(0.5)
     case = jaxmps.scenes.friction_tilt(
         angle=math.degrees(theta),
@@ -704,11 +707,8 @@ def test_block_in_still_water_sticks_and_slides_with_its_submerged_weight():
     )
     assert np.all(np.asarray(out.result) == 0)
     dx = np.asarray(out.saved["block_x"])[:, -1] - float(case.state.rigid.centre[0, 0])
-    free_fall = (1 - 1 / 1.5) * G * math.sin(theta) * 0.3**2 / 2
-    assert 0.2 * free_fall < dx[0] < free_fall  # slides, slowed by the added mass
     assert abs(dx[1]) < 1e-3, dx[1]
-    share = (math.sin(theta) - 0.25 * math.cos(theta)) / math.sin(theta)
-    np.testing.assert_allclose(dx[2] / dx[0], share, rtol=0.15)
+    np.testing.assert_allclose(dx[[0, 2]], [22.66e-3, 11.33e-3], rtol=0.1)
 
 
 @pytest.mark.parametrize("mu", [0.5, 0.1])
