@@ -16,7 +16,8 @@ friction coefficient a member of one `jaxmps.sweep`; float64; default scheme):
   tan(theta) = 0.5, water 1.5 m deep at the block, a 3 m tank; mu = 0, 0.25
   (slides) and 0.55 (stays); l0 = 0.1 and 0.05 m.
 - `finer`: the same frictionless at l0 = 0.025 m; `t10_ds`: mu = 0 and 0.25 at
-  l0 = 0.1 and 0.05 m with dynamic stabilisation (`scheme="standard_ds"`).
+  l0 = 0.1 and 0.05 m with dynamic stabilisation (`scheme="standard_ds"`);
+  `t10_ha`: the same with the high-accuracy scheme at l0 = 0.1, 0.05 and 0.025 m.
 - `seed`: the seed's mu = 0.6: a 0.5 x 0.3 m block of 2.3 x the water's density
   in water 1 m deep, a 2.5 m tank, tan(theta) = 0.55 (stays) and 0.7 (slides);
   and the frictionless slide at tan(theta) = 0.7; l0 = 0.05 m.
@@ -57,6 +58,11 @@ CASES = {
         dict(spacing=s, size=1.0, height=None, ratio=1.5, depth=1.5, floor=3.0,
              tan=0.5, mus=(0.0, 0.25), t_end=0.3, scheme="standard_ds")
         for s in (0.1, 0.05)
+    ],
+    "t10_ha": [
+        dict(spacing=s, size=1.0, height=None, ratio=1.5, depth=1.5, floor=3.0,
+             tan=0.5, mus=(0.0, 0.25), t_end=0.3, scheme="high_accuracy")
+        for s in (0.1, 0.05, 0.025)
     ],
     "seed": [
         dict(spacing=0.05, size=0.5, height=0.3, ratio=2.3, depth=1.0, floor=2.5,
