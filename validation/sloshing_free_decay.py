@@ -13,6 +13,8 @@ scheme's (and the viscosity's, nu = 1e-6 m^2/s: 2 nu k^2 / omega ~ 1e-5 here).
 
     python validation/sloshing_free_decay.py                       # ~3 min, 2 cores
     python validation/sloshing_free_decay.py --ratios 0.2 --schemes standard
+    python validation/sloshing_free_decay.py --schemes explicit \
+        --out results/sloshing_free_decay_explicit_cpu      # E-MPS
 
 Writes results/sloshing_free_decay_cpu.{json,md}.
 """
@@ -46,7 +48,12 @@ def run(ratio, scheme, args):
         tank_height=depth + max(0.1, 4 * args.amplitude),
         amplitude=args.amplitude,
         spacing=args.spacing,
-        scheme=scheme,
+        # "explicit": E-MPS (the explicit solver, whose scheme is the standard one)
+        **(
+            dict(solver="explicit", scheme="standard")
+            if scheme == "explicit"
+            else dict(scheme=scheme)
+        ),
     )
     period = case.config["linear_period"]
     dt = float(case.params.dt)
