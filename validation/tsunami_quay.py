@@ -341,7 +341,8 @@ VERDICT = {True: "holds", False: "**does not hold**", None: "cannot tell"}
 # Two maxima closer than this share are not told apart: the 2 m and 1.5 B ships
 # at l0 = 0.5 m, run on quays of 150 and 300 m, moved at speeds 0.1-5.7 % apart
 # at the same times before the quay's end could reach them (10-14 s), so one
-# case's maximum moves by about that much between runs that differ in round-off.
+# case's maximum moves by about that much between runs that differ only beyond
+# where the flow has got.
 TOLD_APART = 0.02
 
 
