@@ -36,10 +36,11 @@ import jaxmps
 BOX_WIDTH = 0.2
 
 
-def case_rows(quick: bool):
+def case_rows(quick: bool, three_d=(0.02,)):
     """(name, overrides) of the matrix: every density ratio at the default box
     (B = 0.2 m, H = 0.1 m, so B/H = 2) and depth (0.2 m), then aspect ratio B/H
-    and depth one at a time, at each spacing."""
+    and depth one at a time, at each spacing; in 3-D (not `quick`) the density
+    ratios at the spacings `three_d`."""
     rows = []
     for l0 in (0.02, 0.01) if quick else (0.02, 0.01, 0.005):
         for ratio in (0.3, 0.5, 0.6, 0.8):
@@ -54,10 +55,11 @@ def case_rows(quick: bool):
                 (f"depth {depth}", dict(density_ratio=0.6, depth=depth, spacing=l0))
             )
     if not quick:
-        for ratio in (0.3, 0.5, 0.6, 0.8):
-            rows.append(
-                (f"3-D ratio {ratio}", dict(density_ratio=ratio, spacing=0.02, dim=3))
-            )
+        for l0 in three_d:
+            for ratio in (0.3, 0.5, 0.6, 0.8):
+                rows.append(
+                    (f"3-D ratio {ratio}", dict(density_ratio=ratio, spacing=l0, dim=3))
+                )
     return rows
 
 
@@ -265,6 +267,13 @@ def main():
     )
     parser.add_argument("--cases", nargs="*", help="only these case names")
     parser.add_argument("--spacings", nargs="*", type=float, help="only these l0")
+    parser.add_argument(
+        "--three-d-spacings",
+        nargs="+",
+        type=float,
+        default=[0.02],
+        help="l0 of the 3-D rows (0.01, B/20: about an hour a case on one core)",
+    )
     parser.add_argument("--out", default="floating_draft_cpu")
     args = parser.parse_args()
     jax.config.update("jax_enable_x64", True)
@@ -284,7 +293,7 @@ def main():
             else:  # rows from before the depth-derived sound speed
                 r.setdefault("sound_speed", 10.0)
     rows = []
-    for name, overrides in case_rows(args.quick):
+    for name, overrides in case_rows(args.quick, args.three_d_spacings):
         if args.cases and name not in args.cases:
             continue
         if args.spacings and overrides["spacing"] not in args.spacings:
