@@ -218,7 +218,7 @@ def markdown(rows, info):
     return "\n".join(lines) + "\n"
 
 
-def main():
+def _arguments():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true")
     parser.add_argument("--settle", type=float, default=2.0)
@@ -275,7 +275,11 @@ def main():
         help="l0 of the 3-D rows (0.01, B/20: about an hour a case on one core)",
     )
     parser.add_argument("--out", default="floating_draft_cpu")
-    args = parser.parse_args()
+    return parser.parse_args()
+
+
+def main():
+    args = _arguments()
     jax.config.update("jax_enable_x64", True)
     path = HERE / "results" / args.out
     old = []
