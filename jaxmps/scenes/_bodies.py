@@ -623,7 +623,10 @@ def friction_tilt(**overrides) -> Case:
     Theory (seed 002 T10): with the submerged weight W = (M - rho V) g as the
     normal force's scale, the block stays for tan(angle) < mu_static and slides
     with acceleration (W / M g) g (sin(angle) - mu_kinetic cos(angle)), less the
-    water's added mass and drag, which the formula leaves out. The water acts on
+    water's added mass and drag, which the formula leaves out (at the release the
+    added mass of a block on the floor is of the order of its own; measured
+    against linear potential flow of the same tank in validation/slide_in_water.py:
+    0.96-1.09 x its travel). The water acts on
     the block as on the water it replaces (`body_pressure="fluid"`, what `auto`
     takes in water unless `friction_normal="reaction"`, which needs the pair
     form; `pairs` otherwise): with
