@@ -139,19 +139,13 @@ def add_grains(
     """
     if scene.grains is not None:
         raise ValueError("This scene already has grains; add all in one call.")
-    selected = _selected(grains, scene.capacity, state)
-    index = np.nonzero(selected)[0]
-    sizes = _diameters(diameter, len(index), scene.spacing)
+    selected, index, sizes, fluid = _grain_particles(
+        scene, state, grains, diameter, on_fluid
+    )
     position = np.asarray(state.position, np.float64)
     kind = np.array(state.kind)
     active = np.asarray(state.active)
-    fluid = active & (kind == int(Kind.FLUID)) & ~selected
     submerged = bool(np.any(fluid))
-    if on_fluid and not submerged:
-        raise ValueError(
-            "on_fluid=True (scene setting on_fluid) asks the fluid to feel the "
-            "grains' drag, but this case has no fluid: leave on_fluid=False."
-        )
     values = {
         "friction": friction,
         "restitution": restitution,
@@ -172,11 +166,7 @@ def add_grains(
     )
     bed = _attached(attached, selected, index)
     if packed_density is None:
-        packed_density = (
-            _bed_density(scene, position, active, kind, index[bed])
-            if bed.any()
-            else scene.n0
-        )
+        packed_density = _default_packing(scene, position, active, kind, index[bed])
     model = _grains_model(
         scene,
         params,
@@ -199,6 +189,31 @@ def add_grains(
     return _with_grains(
         scene, params, state, model, grain_params, index, walls, sizes, bed
     )
+
+
+def _grain_particles(scene: Scene, state: State, grains, diameter, on_fluid):
+    """The particles `add_grains` turns into grains: their mask over the slots,
+    their indices, their diameters, and the mask of the fluid left around them
+    (`on_fluid` refused where there is none)."""
+    selected = _selected(grains, scene.capacity, state)
+    index = np.nonzero(selected)[0]
+    sizes = _diameters(diameter, len(index), scene.spacing)
+    kind, active = np.asarray(state.kind), np.asarray(state.active)
+    fluid = active & (kind == int(Kind.FLUID)) & ~selected
+    if on_fluid and not np.any(fluid):
+        raise ValueError(
+            "on_fluid=True (scene setting on_fluid) asks the fluid to feel the "
+            "grains' drag, but this case has no fluid: leave on_fluid=False."
+        )
+    return selected, index, sizes, fluid
+
+
+def _default_packing(scene: Scene, position, active, kind, bed_index) -> float:
+    """n_s0 where `packed_density` is not given: the bed's largest number density
+    with attached grains, the scene's n0 without."""
+    if len(bed_index) == 0:
+        return scene.n0
+    return _bed_density(scene, position, active, kind, bed_index)
 
 
 def _grains_model(
